@@ -1,0 +1,117 @@
+"""The lockstep virtual clock that drives the whole twin (like PX4 SITL lockstep).
+
+Time is an integer number of microseconds. Every activity of the twin is an event on this
+clock: the Master's 250 µs timer, each Slave's 20 ms PWM tick, the end of each CAN frame on
+the wire, each serial byte after its 11 bit times. The plant (MuJoCo) is stepped lazily: any
+component that touches it first calls ``plant.advance_to(clock.now_us)``, which runs the
+physics steps due up to that instant in one ``mj_step(..., nstep=k)`` call. The result is the
+same as stepping physics as events, without a Python call per physics step.
+
+Events at the same instant run in the order they were scheduled (a sequence number breaks
+ties), so the same inputs and seed give the same bytes and trajectories, run after run.
+"""
+
+from __future__ import annotations
+
+import heapq
+import time
+from collections.abc import Callable
+
+US_PER_S = 1_000_000
+
+Callback = Callable[[], None]
+
+
+class Clock:
+    """Integer-microsecond discrete-event scheduler."""
+
+    __slots__ = ("now_us", "_queue", "_seq", "events_run")
+
+    def __init__(self) -> None:
+        self.now_us: int = 0
+        self._queue: list[tuple[int, int, Callback]] = []
+        self._seq = 0
+        self.events_run = 0
+
+    @property
+    def now_s(self) -> float:
+        """Virtual time in seconds."""
+        return self.now_us / US_PER_S
+
+    def schedule(self, t_us: int, callback: Callback) -> None:
+        """Run ``callback`` at absolute virtual time ``t_us`` (not before ``now_us``)."""
+        if t_us < self.now_us:
+            raise ValueError(f"cannot schedule in the past: {t_us} < {self.now_us}")
+        self._seq += 1
+        heapq.heappush(self._queue, (t_us, self._seq, callback))
+
+    def after(self, delay_us: int, callback: Callback) -> None:
+        """Run ``callback`` ``delay_us`` microseconds from now."""
+        self.schedule(self.now_us + delay_us, callback)
+
+    def call_every(self, period_us: int, callback: Callback, first_us: int | None = None) -> None:
+        """Run ``callback`` every ``period_us``, first at ``first_us`` (default: one period from now)."""
+        if period_us <= 0:
+            raise ValueError("period must be positive")
+        due = [self.now_us + period_us if first_us is None else first_us]
+
+        def tick() -> None:
+            callback()
+            due[0] += period_us
+            self.schedule(due[0], tick)
+
+        self.schedule(due[0], tick)
+
+    def next_event_us(self) -> int | None:
+        """Time of the next pending event, or None."""
+        return self._queue[0][0] if self._queue else None
+
+    def run_until(self, t_us: int) -> None:
+        """Run every event due at or before ``t_us``, then set ``now_us = t_us``."""
+        queue = self._queue
+        pop = heapq.heappop
+        n = 0
+        while queue and queue[0][0] <= t_us:
+            t, _, cb = pop(queue)
+            self.now_us = t
+            cb()
+            n += 1
+        self.events_run += n
+        if t_us > self.now_us:
+            self.now_us = t_us
+
+    def run_for(self, duration_us: int) -> None:
+        """Advance virtual time by ``duration_us``."""
+        self.run_until(self.now_us + duration_us)
+
+
+class RealTimePacer:
+    """Keeps virtual time in step with the wall clock (the ``serve`` mode).
+
+    ``pace()`` advances the clock to the virtual instant that corresponds to the elapsed wall
+    time since ``start()``, at most ``max_step_us`` at a time, and returns how far behind real
+    time the twin is (seconds, 0 when on time).
+    """
+
+    def __init__(self, clock: Clock, speed: float = 1.0) -> None:
+        self.clock = clock
+        self.speed = speed
+        self._wall0 = time.monotonic()
+        self._virt0 = clock.now_us
+
+    def start(self) -> None:
+        """Anchor virtual now to wall now."""
+        self._wall0 = time.monotonic()
+        self._virt0 = self.clock.now_us
+
+    def target_us(self) -> int:
+        """The virtual time that corresponds to wall now."""
+        return self._virt0 + int((time.monotonic() - self._wall0) * self.speed * US_PER_S)
+
+    def pace(self, max_step_us: int = 2_000) -> float:
+        """Advance virtual time toward wall time; return the lag in seconds."""
+        target = self.target_us()
+        now = self.clock.now_us
+        if target > now:
+            self.clock.run_until(min(target, now + max_step_us))
+        return max(0.0, (target - self.clock.now_us) / US_PER_S)
