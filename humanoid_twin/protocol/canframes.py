@@ -1,0 +1,357 @@
+"""CAN identifiers, acceptance filters and 8-byte payloads between the Master and the Slaves.
+
+SPEC.md section 3; seed 002 slides 18-20 (identifier, addresses, payload layouts) and 23-24
+(acceptance masks/filters, RX/TX buffers). The contract and the interpretations of the seeds are
+written down in ``docs/protocol.md``.
+
+Identifier (11 bits): bits 10-7 source address, 6-3 destination, 2 packet index, 1-0 operation
+(:data:`OP_ACTUATION` Master -> Slave, :data:`OP_SENSORS` Slave -> Master).
+
+Pure codecs, no I/O, no time, built for the hot path (thousands of payloads per simulated second):
+the pack/unpack functions take and return plain ints/tuples/bytes over precompiled
+``struct.Struct`` objects, the byte parsers are 256-entry look-up tables.
+"""
+
+from __future__ import annotations
+
+import struct
+from collections.abc import Sequence
+from typing import TYPE_CHECKING, NamedTuple
+
+if TYPE_CHECKING:  # cantools is imported lazily by load_dbc (it is slow to import)
+    import cantools.database
+
+__all__ = [
+    "OP_ACTUATION",
+    "OP_SENSORS",
+    "MASTER_ADDRESS",
+    "PAYLOAD_LEN",
+    "CURRENT_MAX",
+    "MASTER_MASK",
+    "SLAVE_MASK",
+    "ACTUATION_IDS",
+    "SENSOR_IDS",
+    "PayloadError",
+    "SlaveStatus",
+    "can_id",
+    "split_id",
+    "master_filters",
+    "slave_filters",
+    "control_byte",
+    "parse_control_byte",
+    "status_byte",
+    "parse_status_byte",
+    "sflags",
+    "pack_actuation1",
+    "unpack_actuation1",
+    "pack_actuation2",
+    "unpack_actuation2",
+    "pack_sensors1",
+    "unpack_sensors1",
+    "pack_sensors2",
+    "unpack_sensors2",
+    "load_dbc",
+    "DBC_RESOURCE",
+]
+
+OP_ACTUATION = 0        # Master -> Slave (SPEC.md section 3, settled)
+OP_SENSORS = 1          # Slave -> Master
+MASTER_ADDRESS = 0      # seed 002 slide 19
+PAYLOAD_LEN = 8         # every packet carries 8 data bytes (slide 20)
+CURRENT_MAX = 100       # Curr1..3 are 0..100 (finalizeServoMeasures, SPEC.md section 4)
+
+# Acceptance masks (seed 002 slide 23). A frame is accepted when (id & mask) == (filter & mask).
+MASTER_MASK = 0b00001111100   # destination + index: frames destined to the Master
+SLAVE_MASK = 0b11110000100    # source + index: frames from the Master (destination NOT in the mask)
+
+DBC_RESOURCE = "humanoid_twin.dbc"
+
+
+class PayloadError(ValueError):
+    """A CAN payload that cannot be packed or unpacked: wrong length, a value out of its field's
+    range, or SFlags bits 2-0 not zero / SFlags index not the packet's."""
+
+
+# --- identifiers ---------------------------------------------------------------------------
+
+
+def can_id(src: int, dst: int, index: int, op: int) -> int:
+    """11-bit identifier: bits 10-7 source, 6-3 destination, 2 index, 1-0 operation (slide 18).
+    ``ValueError`` when a field does not fit its bits."""
+    if not (0 <= src <= 15 and 0 <= dst <= 15 and 0 <= index <= 1 and 0 <= op <= 3):
+        raise ValueError(
+            f"CAN id fields out of range: src={src!r} (0..15), dst={dst!r} (0..15), "
+            f"index={index!r} (0..1), op={op!r} (0..3)"
+        )
+    return (src << 7) | (dst << 3) | (index << 2) | op
+
+
+def split_id(arbitration_id: int) -> tuple[int, int, int, int]:
+    """Identifier -> ``(src, dst, index, op)``; ``ValueError`` if not an 11-bit standard id."""
+    if not 0 <= arbitration_id <= 0x7FF:
+        raise ValueError(f"standard CAN id must be 0..0x7FF, got {arbitration_id!r}")
+    return arbitration_id >> 7, (arbitration_id >> 3) & 0x0F, (arbitration_id >> 2) & 1, arbitration_id & 3
+
+
+# Precomputed identifiers, scu 1..8 -> (packet index 0, packet index 1).
+ACTUATION_IDS: dict[int, tuple[int, int]] = {
+    k: (can_id(MASTER_ADDRESS, k, 0, OP_ACTUATION), can_id(MASTER_ADDRESS, k, 1, OP_ACTUATION))
+    for k in range(1, 9)
+}
+SENSOR_IDS: dict[int, tuple[int, int]] = {
+    k: (can_id(k, MASTER_ADDRESS, 0, OP_SENSORS), can_id(k, MASTER_ADDRESS, 1, OP_SENSORS))
+    for k in range(1, 9)
+}
+
+
+def master_filters() -> list[dict]:
+    """python-can ``can_filters`` of the Master (slide 23): ``[RXB0, RXB1]``.
+
+    RXB0 ``0bxxxx00000xx`` (to the Master, index 0), RXB1 ``0bxxxx00001xx`` (index 1), both with
+    :data:`MASTER_MASK`. List position 0 = RXB0, 1 = RXB1.
+    """
+    return [
+        {"can_id": 0b00000000000, "can_mask": MASTER_MASK, "extended": False},
+        {"can_id": 0b00000000100, "can_mask": MASTER_MASK, "extended": False},
+    ]
+
+
+def slave_filters() -> list[dict]:
+    """python-can ``can_filters`` of a Slave (slide 23): ``[RXB0, RXB1]``.
+
+    RXB0 ``0b0000xxxx0xx`` (from the Master, index 0), RXB1 ``0b0000xxxx1xx`` (index 1), both
+    with :data:`SLAVE_MASK`. The destination is not in the mask: every slave receives every
+    Master frame and checks the destination in software (``receiveCanMessage``).
+    """
+    return [
+        {"can_id": 0b00000000000, "can_mask": SLAVE_MASK, "extended": False},
+        {"can_id": 0b00000000100, "can_mask": SLAVE_MASK, "extended": False},
+    ]
+
+
+# --- control, status and SFlags bytes ------------------------------------------------------
+
+
+def control_byte(pwm: bool, calib: bool, types: Sequence[int]) -> int:
+    """Actuation 1 Control byte (slide 20): bit 7 PWM, bit 6 Calib, bits 5-0 control types of
+    servo 3, 2, 1 (2 bits each; servo 1 in bits 1-0). ``types`` = (servo 1, servo 2, servo 3)."""
+    try:
+        t1, t2, t3 = types
+        if 0 <= t1 <= 3 and 0 <= t2 <= 3 and 0 <= t3 <= 3:
+            return (0x80 if pwm else 0) | (0x40 if calib else 0) | (t3 << 4) | (t2 << 2) | t1
+    except TypeError:
+        pass
+    except ValueError:
+        raise PayloadError(f"control types must be 3 values (servo 1, 2, 3), got {types!r}") from None
+    raise PayloadError(f"control types must be 3 integers 0..3 (servo 1, 2, 3), got {types!r}")
+
+
+_CONTROL_TABLE: tuple[tuple[bool, bool, tuple[int, int, int]], ...] = tuple(
+    (bool(b & 0x80), bool(b & 0x40), (b & 3, (b >> 2) & 3, (b >> 4) & 3)) for b in range(256)
+)
+
+
+def parse_control_byte(b: int) -> tuple[bool, bool, tuple[int, int, int]]:
+    """Control byte -> ``(pwm, calib, (type servo 1, type servo 2, type servo 3))``."""
+    if not 0 <= b <= 255:
+        raise PayloadError(f"control byte must be 0..255, got {b!r}")
+    return _CONTROL_TABLE[b]
+
+
+class SlaveStatus(NamedTuple):
+    """Sensors 1 Status byte (slide 20), as parsed by :func:`parse_status_byte`."""
+
+    pwm: bool                       # bit 7: PWM on
+    calib: bool                     # bit 6: calibration complete
+    deadline: bool                  # bit 5: deadline violated
+    fin_all: bool                   # bit 4: all motions finished
+    fin_one: bool                   # bit 3: one motion finished
+    fin: tuple[bool, bool, bool]    # bits 0, 1, 2: motion of servo 1, 2, 3 finished
+
+
+def status_byte(
+    pwm: bool, calib: bool, deadline: bool, fin_all: bool, fin_one: bool, fin: Sequence[bool]
+) -> int:
+    """Sensors 1 Status byte (slide 20): bit 7 PWM, 6 Calib, 5 deadline violated, 4 all motions
+    finished, 3 one motion finished, 2-0 motion finished per servo (servo 1 = bit 0)."""
+    try:
+        f1, f2, f3 = fin
+    except (TypeError, ValueError):
+        raise PayloadError(f"fin must be 3 flags (servo 1, 2, 3), got {fin!r}") from None
+    return (
+        (0x80 if pwm else 0)
+        | (0x40 if calib else 0)
+        | (0x20 if deadline else 0)
+        | (0x10 if fin_all else 0)
+        | (0x08 if fin_one else 0)
+        | (0x04 if f3 else 0)
+        | (0x02 if f2 else 0)
+        | (0x01 if f1 else 0)
+    )
+
+
+_STATUS_TABLE: tuple[SlaveStatus, ...] = tuple(
+    SlaveStatus(
+        bool(b & 0x80),
+        bool(b & 0x40),
+        bool(b & 0x20),
+        bool(b & 0x10),
+        bool(b & 0x08),
+        (bool(b & 1), bool(b & 2), bool(b & 4)),
+    )
+    for b in range(256)
+)
+
+
+def parse_status_byte(b: int) -> SlaveStatus:
+    """Status byte -> :class:`SlaveStatus`."""
+    if not 0 <= b <= 255:
+        raise PayloadError(f"status byte must be 0..255, got {b!r}")
+    return _STATUS_TABLE[b]
+
+
+def sflags(src: int, index: int) -> int:
+    """SFlags byte of a sensor packet (slide 20): bits 7-4 source address, bit 3 index, 2-0 zero."""
+    if not (0 <= src <= 15 and 0 <= index <= 1):
+        raise PayloadError(f"SFlags: source must be 0..15 and index 0..1, got src={src!r}, index={index!r}")
+    return (src << 4) | (index << 3)
+
+
+def _split_sflags(sf: int, index: int, packet: str) -> int:
+    if sf & 0x07:
+        raise PayloadError(f"{packet}: SFlags 0x{sf:02X} has bits 2-0 set (must be zero)")
+    if (sf >> 3) & 1 != index:
+        raise PayloadError(f"{packet}: SFlags 0x{sf:02X} carries index {(sf >> 3) & 1}, expected {index}")
+    return sf >> 4
+
+
+# --- payloads ------------------------------------------------------------------------------
+
+_ACT1 = struct.Struct("<3b3B2B")   # Ref1..3 int8 deg, Speed1..3 (period, ticks), Control, KD3
+_ACT2 = struct.Struct("<8B")       # KI1..3, KP1..3, KD1, KD2
+_SEN1 = struct.Struct("<B3b3bB")   # SFlags, Pos1..3 int8 deg, Speed1..3 int8 deg/tick, Status
+_SEN2 = struct.Struct("<8B")       # SFlags, Curr1..3 (0..100), Data1..4
+
+
+def _pack_error(packet: str, exc: Exception, **fields: object) -> PayloadError:
+    what = ", ".join(f"{k}={v!r}" for k, v in fields.items())
+    return PayloadError(f"{packet}: cannot pack {what}: {exc}")
+
+
+def _length_error(packet: str, data: bytes | bytearray | memoryview) -> PayloadError:
+    return PayloadError(
+        f"{packet}: payload must be {PAYLOAD_LEN} bytes, got {len(data)}: [{bytes(data).hex(' ').upper()}]"
+    )
+
+
+def pack_actuation1(refs: Sequence[int], speeds: Sequence[int], control: int, kd3: int) -> bytes:
+    """Actuation 1 ``Ref1 Ref2 Ref3 Speed1 Speed2 Speed3 Control KD3`` (slide 20; ``canSendMsg``).
+
+    ``refs``: int8 degrees; ``speeds``: movement period in 20 ms ticks, 0..255;
+    ``control``: :func:`control_byte`; ``kd3``: 0..255.
+    """
+    try:
+        r1, r2, r3 = refs
+        s1, s2, s3 = speeds
+        return _ACT1.pack(r1, r2, r3, s1, s2, s3, control, kd3)
+    except (struct.error, TypeError, ValueError) as exc:
+        raise _pack_error("Actuation1", exc, refs=refs, speeds=speeds, control=control, kd3=kd3) from None
+
+
+def unpack_actuation1(data: bytes) -> tuple[tuple[int, int, int], tuple[int, int, int], int, int]:
+    """Actuation 1 payload -> ``((ref1, ref2, ref3), (speed1, speed2, speed3), control, kd3)``
+    (``receiveCanMessage`` on the Slave)."""
+    try:
+        r1, r2, r3, s1, s2, s3, c, k = _ACT1.unpack(data)
+    except struct.error:
+        raise _length_error("Actuation1", data) from None
+    return (r1, r2, r3), (s1, s2, s3), c, k
+
+
+def pack_actuation2(ki: Sequence[int], kp: Sequence[int], kd1: int, kd2: int) -> bytes:
+    """Actuation 2 ``KI1 KI2 KI3 KP1 KP2 KP3 KD1 KD2`` (slide 20: "K1 K2" = KD1 KD2), bytes 0..255."""
+    try:
+        i1, i2, i3 = ki
+        p1, p2, p3 = kp
+        return _ACT2.pack(i1, i2, i3, p1, p2, p3, kd1, kd2)
+    except (struct.error, TypeError, ValueError) as exc:
+        raise _pack_error("Actuation2", exc, ki=ki, kp=kp, kd1=kd1, kd2=kd2) from None
+
+
+def unpack_actuation2(data: bytes) -> tuple[tuple[int, int, int], tuple[int, int, int], int, int]:
+    """Actuation 2 payload -> ``((ki1, ki2, ki3), (kp1, kp2, kp3), kd1, kd2)``."""
+    try:
+        i1, i2, i3, p1, p2, p3, d1, d2 = _ACT2.unpack(data)
+    except struct.error:
+        raise _length_error("Actuation2", data) from None
+    return (i1, i2, i3), (p1, p2, p3), d1, d2
+
+
+def pack_sensors1(src: int, pos: Sequence[int], speed: Sequence[int], status: int) -> bytes:
+    """Sensors 1 ``SFlags Pos1 Pos2 Pos3 Speed1 Speed2 Speed3 Status`` (slide 20; ``sendCanMessage``).
+
+    ``src``: the slave's address; ``pos``: int8 degrees; ``speed``: mean velocity, int8 degrees
+    per 20 ms tick; ``status``: :func:`status_byte`.
+    """
+    try:
+        if not 0 <= src <= 15:
+            raise ValueError(f"source address must be 0..15, got {src!r}")
+        p1, p2, p3 = pos
+        v1, v2, v3 = speed
+        return _SEN1.pack(src << 4, p1, p2, p3, v1, v2, v3, status)
+    except (struct.error, TypeError, ValueError) as exc:
+        raise _pack_error("Sensors1", exc, src=src, pos=pos, speed=speed, status=status) from None
+
+
+def unpack_sensors1(data: bytes) -> tuple[int, int, tuple[int, int, int], tuple[int, int, int], int]:
+    """Sensors 1 payload -> ``(src, index, (pos1, pos2, pos3), (speed1, speed2, speed3), status)``
+    (``canReceiveMsg`` on the Master). ``PayloadError`` if SFlags bits 2-0 are not zero or its
+    index is not 0."""
+    try:
+        sf, p1, p2, p3, v1, v2, v3, st = _SEN1.unpack(data)
+    except struct.error:
+        raise _length_error("Sensors1", data) from None
+    return _split_sflags(sf, 0, "Sensors1"), 0, (p1, p2, p3), (v1, v2, v3), st
+
+
+def pack_sensors2(src: int, curr: Sequence[int], data4: Sequence[int]) -> bytes:
+    """Sensors 2 ``SFlags Curr1 Curr2 Curr3 Data1 Data2 Data3 Data4`` (slide 20).
+
+    ``curr``: 0..100 (:data:`CURRENT_MAX`); ``data4``: the 4 special sensors (force), bytes.
+    """
+    try:
+        if not 0 <= src <= 15:
+            raise ValueError(f"source address must be 0..15, got {src!r}")
+        c1, c2, c3 = curr
+        d1, d2, d3, d4 = data4
+        if c1 > CURRENT_MAX or c2 > CURRENT_MAX or c3 > CURRENT_MAX:
+            raise ValueError(f"current must be 0..{CURRENT_MAX}")
+        return _SEN2.pack((src << 4) | 0x08, c1, c2, c3, d1, d2, d3, d4)
+    except (struct.error, TypeError, ValueError) as exc:
+        raise _pack_error("Sensors2", exc, src=src, curr=curr, data4=data4) from None
+
+
+def unpack_sensors2(data: bytes) -> tuple[int, int, tuple[int, int, int], tuple[int, int, int, int]]:
+    """Sensors 2 payload -> ``(src, index, (curr1, curr2, curr3), (data1, data2, data3, data4))``.
+    ``PayloadError`` if SFlags bits 2-0 are not zero, its index is not 1, or a current is over 100."""
+    try:
+        sf, c1, c2, c3, d1, d2, d3, d4 = _SEN2.unpack(data)
+    except struct.error:
+        raise _length_error("Sensors2", data) from None
+    if c1 > CURRENT_MAX or c2 > CURRENT_MAX or c3 > CURRENT_MAX:
+        raise PayloadError(f"Sensors2: current must be 0..{CURRENT_MAX}, got {(c1, c2, c3)}")
+    return _split_sflags(sf, 1, "Sensors2"), 1, (c1, c2, c3), (d1, d2, d3, d4)
+
+
+# --- DBC -----------------------------------------------------------------------------------
+
+
+def load_dbc() -> cantools.database.Database:
+    """The shipped DBC (``humanoid_twin/protocol/humanoid_twin.dbc``, generated by
+    ``scripts/make_dbc.py``): the 32 messages (4 per slave) for decoding CAN logs with cantools."""
+    from importlib.resources import files
+
+    import cantools
+
+    text = files(__package__).joinpath(DBC_RESOURCE).read_text(encoding="utf-8")
+    return cantools.database.load_string(text, database_format="dbc")
