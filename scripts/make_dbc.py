@@ -1,0 +1,275 @@
+#!/usr/bin/env python3
+"""Generate ``humanoid_twin/protocol/humanoid_twin.dbc`` with the cantools API.
+
+The DBC describes the Master <-> Slave CAN traffic of seed 002 slides 18-20 (SPEC.md section 3):
+for each slave k = 1..8, ``Actuation1_S<k>`` / ``Actuation2_S<k>`` from MASTER to SCU<k> and
+``Sensors1_S<k>`` / ``Sensors2_S<k>`` back. Identifiers come from ``canframes.can_id``; signal
+ranges are the ranges the codecs in ``humanoid_twin.protocol.canframes`` accept.
+
+    python scripts/make_dbc.py            # (re)write the shipped file
+    python scripts/make_dbc.py --check    # exit 1 if the shipped file is not what this generates
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections import OrderedDict
+from pathlib import Path
+
+from cantools.database import conversion
+from cantools.database.can import Database, Message, Node, Signal
+
+REPO = Path(__file__).resolve().parents[1]
+if str(REPO) not in sys.path:  # generate from this checkout, installed or not
+    sys.path.insert(0, str(REPO))
+
+from humanoid_twin.hardware import SCU_NAMES  # noqa: E402
+from humanoid_twin.protocol import canframes as cf  # noqa: E402
+from humanoid_twin.protocol.rs232 import ControlType  # noqa: E402
+
+DBC_PATH = REPO / "humanoid_twin" / "protocol" / cf.DBC_RESOURCE
+
+# Section names as in seed 002 slide 19.
+SECTIONS = {
+    1: "Right Leg",
+    2: "Left Leg",
+    3: "Right Hip",
+    4: "Left Hip",
+    5: "Body",
+    6: "Right Arm",
+    7: "Left Arm",
+    8: "Head",
+}
+
+CONTROL_CHOICES = OrderedDict((int(t), t.name) for t in ControlType)
+
+
+def _sig(
+    name: str,
+    byte: int,
+    *,
+    bit: int = 0,
+    length: int = 8,
+    signed: bool = False,
+    unit: str | None = None,
+    minimum: int | None = None,
+    maximum: int | None = None,
+    choices: OrderedDict | None = None,
+    comment: str | None = None,
+    receiver: str,
+) -> Signal:
+    """A signal of ``length`` bits starting at bit ``bit`` of payload byte ``byte`` (0-based)."""
+    if minimum is None:
+        minimum = -(1 << (length - 1)) if signed else 0
+    if maximum is None:
+        maximum = (1 << (length - 1)) - 1 if signed else (1 << length) - 1
+    return Signal(
+        name=name,
+        start=8 * byte + bit,
+        length=length,
+        byte_order="little_endian",
+        is_signed=signed,
+        conversion=conversion.BaseConversion.factory(scale=1, offset=0, choices=choices),
+        minimum=minimum,
+        maximum=maximum,
+        unit=unit,
+        comment=comment,
+        receivers=[receiver],
+    )
+
+
+def _sflags(receiver: str) -> list[Signal]:
+    return [
+        _sig(
+            "SFlagsSource", 0, bit=4, length=4, comment="SFlags bits 7-4: source address", receiver=receiver
+        ),
+        _sig("SFlagsIndex", 0, bit=3, length=1, comment="SFlags bit 3: packet index", receiver=receiver),
+    ]
+
+
+def messages_for(k: int) -> list[Message]:
+    """The four messages exchanged with slave ``k`` (seed 002 slide 20)."""
+    scu = f"SCU{k}"
+    act1 = [
+        *(
+            _sig(
+                f"Ref{i}",
+                i - 1,
+                signed=True,
+                unit="deg",
+                comment=f"reference position, servo {i}",
+                receiver=scu,
+            )
+            for i in (1, 2, 3)
+        ),
+        *(
+            _sig(
+                f"Speed{i}",
+                2 + i,
+                unit="tick",
+                comment=f"movement period in 20 ms ticks, servo {i}",
+                receiver=scu,
+            )
+            for i in (1, 2, 3)
+        ),
+        *(
+            _sig(
+                f"Type{i}",
+                6,
+                bit=2 * (i - 1),
+                length=2,
+                choices=CONTROL_CHOICES,
+                comment=f"Control bits {2 * i - 1}-{2 * i - 2}: control type of servo {i}",
+                receiver=scu,
+            )
+            for i in (1, 2, 3)
+        ),
+        _sig("Calib", 6, bit=6, length=1, comment="Control bit 6: calibration requested", receiver=scu),
+        _sig("PWM", 6, bit=7, length=1, comment="Control bit 7: PWM on", receiver=scu),
+        _sig("KD3", 7, comment="KD gain, servo 3", receiver=scu),
+    ]
+    act2 = [
+        *(_sig(f"KI{i}", i - 1, comment=f"KI gain, servo {i}", receiver=scu) for i in (1, 2, 3)),
+        *(_sig(f"KP{i}", 2 + i, comment=f"KP gain, servo {i}", receiver=scu) for i in (1, 2, 3)),
+        _sig("KD1", 6, comment="KD gain, servo 1", receiver=scu),
+        _sig("KD2", 7, comment="KD gain, servo 2", receiver=scu),
+    ]
+    sen1 = [
+        *_sflags("MASTER"),
+        *(
+            _sig(
+                f"Pos{i}",
+                i,
+                signed=True,
+                unit="deg",
+                comment=f"measured position, servo {i}",
+                receiver="MASTER",
+            )
+            for i in (1, 2, 3)
+        ),
+        *(
+            _sig(
+                f"Speed{i}",
+                3 + i,
+                signed=True,
+                unit="deg/tick",
+                comment=f"mean velocity (degrees per 20 ms tick), servo {i}",
+                receiver="MASTER",
+            )
+            for i in (1, 2, 3)
+        ),
+        *(
+            _sig(
+                f"Fin{i}",
+                7,
+                bit=i - 1,
+                length=1,
+                comment=f"Status bit {i - 1}: motion of servo {i} finished",
+                receiver="MASTER",
+            )
+            for i in (1, 2, 3)
+        ),
+        _sig("FinOne", 7, bit=3, length=1, comment="Status bit 3: one motion finished", receiver="MASTER"),
+        _sig("FinAll", 7, bit=4, length=1, comment="Status bit 4: all motions finished", receiver="MASTER"),
+        _sig("Deadline", 7, bit=5, length=1, comment="Status bit 5: deadline violated", receiver="MASTER"),
+        _sig("Calib", 7, bit=6, length=1, comment="Status bit 6: calibration complete", receiver="MASTER"),
+        _sig("PWM", 7, bit=7, length=1, comment="Status bit 7: PWM on", receiver="MASTER"),
+    ]
+    sen2 = [
+        *_sflags("MASTER"),
+        *(
+            _sig(
+                f"Curr{i}",
+                i,
+                maximum=cf.CURRENT_MAX,
+                unit="%",
+                comment=f"current 0..100, servo {i}",
+                receiver="MASTER",
+            )
+            for i in (1, 2, 3)
+        ),
+        *(
+            _sig(f"Data{i}", 3 + i, comment=f"special sensor {i} (foot force, 8-bit)", receiver="MASTER")
+            for i in (1, 2, 3, 4)
+        ),
+    ]
+    a1, a2 = cf.ACTUATION_IDS[k]
+    s1, s2 = cf.SENSOR_IDS[k]
+    section = SECTIONS[k]
+    return [
+        Message(
+            a1,
+            f"Actuation1_S{k}",
+            8,
+            act1,
+            senders=["MASTER"],
+            comment=f"Actuation 1 (index 0), Master -> slave {k} ({section})",
+        ),
+        Message(
+            a2,
+            f"Actuation2_S{k}",
+            8,
+            act2,
+            senders=["MASTER"],
+            comment=f"Actuation 2 (index 1), Master -> slave {k} ({section})",
+        ),
+        Message(
+            s1,
+            f"Sensors1_S{k}",
+            8,
+            sen1,
+            senders=[scu],
+            comment=f"Sensors 1 (index 0), slave {k} ({section}) -> Master",
+        ),
+        Message(
+            s2,
+            f"Sensors2_S{k}",
+            8,
+            sen2,
+            senders=[scu],
+            comment=f"Sensors 2 (index 1), slave {k} ({section}) -> Master",
+        ),
+    ]
+
+
+def build_database() -> Database:
+    """The whole DBC as a cantools database."""
+    nodes = [Node("MASTER", comment="Master unit (address 0): RS-232 <-> CAN distributer")]
+    nodes += [
+        Node(f"SCU{k}", comment=f"Slave {k}: {SECTIONS[k]} (address {k}, {SCU_NAMES[k]})")
+        for k in range(1, 9)
+    ]
+    messages = [m for k in range(1, 9) for m in messages_for(k)]
+    return Database(messages=messages, nodes=nodes, version="1.0")
+
+
+def dbc_text() -> str:
+    """The DBC file content this script writes."""
+    return build_database().as_dbc_string().replace("\r\n", "\n")  # LF: clean git diffs
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    parser.add_argument(
+        "--check", action="store_true", help="compare with the shipped file instead of writing"
+    )
+    parser.add_argument("--out", type=Path, default=DBC_PATH, help=f"output file (default {DBC_PATH})")
+    args = parser.parse_args(argv)
+    text = dbc_text()
+    if args.check:
+        current = args.out.read_bytes().decode("utf-8") if args.out.exists() else ""
+        if current != text:
+            print(f"{args.out} is out of date: run scripts/make_dbc.py", file=sys.stderr)
+            return 1
+        print(f"{args.out} is up to date")
+        return 0
+    args.out.write_bytes(text.encode("utf-8"))
+    print(f"wrote {args.out} ({len(build_database().messages)} messages)")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
