@@ -1,0 +1,149 @@
+"""Module CAN of the Master (seed 000 section 2, table 4; seed 002 slides 18-20, 26-31).
+
+High-level CAN messages of the Master: ``canSendMsg`` builds one actuation packet of one SCU
+from the global database, ``canReceiveMsg`` stores a sensor packet in the database,
+``canClearStatus`` recovers the controller from bus-off. The time-triggered schedule that calls
+them lives in :mod:`humanoid_twin.master.pic` (the timer interrupt).
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import can
+
+from humanoid_twin.master.candrivers import CanDrivers
+from humanoid_twin.master.database import Database
+from humanoid_twin.protocol.canframes import (
+    ACTUATION_IDS,
+    MASTER_ADDRESS,
+    OP_SENSORS,
+    PayloadError,
+    control_byte,
+    master_filters,
+    pack_actuation1,
+    pack_actuation2,
+    unpack_sensors1,
+    unpack_sensors2,
+)
+
+if TYPE_CHECKING:
+    from collections.abc import Callable
+
+    from humanoid_twin.bus import CanNetwork
+    from humanoid_twin.clock import Clock
+
+# CanController.state -> ERRSTATE byte of the CAN status response (SPEC.md section 2).
+ERRSTATE: dict[str, int] = {"error-active": 0, "error-passive": 1, "bus-off": 2}
+
+_Message = can.Message
+
+
+class MasterCan:
+    """The Master's CAN module: database <-> packets, over :class:`CanDrivers`."""
+
+    def __init__(self, clock: Clock, network: CanNetwork, db: Database, name: str = "master") -> None:
+        self.clock = clock
+        self.db = db
+        self.drivers = CanDrivers(network, name)
+        self.rejected: list[tuple[int, int, str]] = []  # (t_us, id, reason), the last few rejected frames
+
+    def canInit(self, on_rx: Callable[[can.Message], None]) -> None:
+        """``canInit`` (table 4): CAN peripheral with the Master's acceptance filters (slide 23:
+        RXB0 = frames to the Master with index 0, RXB1 = index 1) and its RX interrupt ``on_rx``."""
+        self.drivers.myCANInitialize(master_filters(), on_rx)
+
+    def canSendMsg(self, scu: int, index: int) -> bool:
+        """``canSendMsg`` (table 4): request the actuation packet ``index`` (0 or 1) of SCU ``scu``.
+
+        Packet 1: ``Ref1..3 Speed1..3 Control KD3`` with the control byte from PWM, Calib and the
+        three control types; packet 2: ``KI1..3 KP1..3 KD1 KD2`` (slide 20). The payloads are
+        cached until the host changes the SCU's data. Packet 1 goes through TX buffer 0, packet 2
+        through TX buffer 1 (slide 24). Returns False if the controller refused the request.
+        """
+        a = self.db.actuators[scu]
+        c = self.db.counters
+        c.can_tx_requests += 1
+        if index == 0:
+            p = a.payload1
+            if p is None:
+                kd3 = a.kd[2]
+                p = a.payload1 = pack_actuation1(a.ref, a.speed, control_byte(a.pwm, a.calib, a.type), kd3)
+            msg = _Message(arbitration_id=ACTUATION_IDS[scu][0], is_extended_id=False, data=p, is_rx=False)
+            ok = self.drivers.myCANSendMessage0(msg)
+        else:
+            p = a.payload2
+            if p is None:
+                kd = a.kd
+                p = a.payload2 = pack_actuation2(a.ki, a.kp, kd[0], kd[1])
+            msg = _Message(arbitration_id=ACTUATION_IDS[scu][1], is_extended_id=False, data=p, is_rx=False)
+            ok = self.drivers.myCANSendMessage1(msg)
+        if not ok:
+            c.can_tx_refused += 1
+        return ok
+
+    def canAbort(self) -> None:
+        """Abort a pending actuation packet (slide 27, slots 1 and 3: TXABT)."""
+        if self.drivers.myCANAbort():
+            self.db.counters.can_tx_aborts += 1
+
+    def canReceiveMsg(self) -> bool:
+        """``canReceiveMsg`` (table 4): take the packet in the first full RX buffer and store it in
+        the database. The SFlags byte must name the same source and index as the identifier, the
+        operation must be a sensor reading and the source a slave 1..8; otherwise the packet is
+        dropped and counted (``can_rx_rejected``). Returns True when a packet was stored."""
+        msg = self.drivers.myCANReceiveMessage()
+        if msg is None:
+            return False
+        db = self.db
+        c = db.counters
+        c.can_rx_frames += 1
+        ident = msg.arbitration_id
+        src = ident >> 7
+        index = (ident >> 2) & 1
+        s = db.sensors.get(src)
+        if s is None or ident & 3 != OP_SENSORS or (ident >> 3) & 0x0F != MASTER_ADDRESS:
+            return self._reject(ident, f"id 0x{ident:03X}: not a sensor packet from slave 1..8 to Master")
+        data = msg.data
+        try:
+            if index == 0:
+                sf_src, _, pos, vel, status = unpack_sensors1(data)
+            else:
+                sf_src, _, curr, special = unpack_sensors2(data)
+        except PayloadError as exc:
+            return self._reject(ident, str(exc))
+        if sf_src != src:
+            return self._reject(ident, f"SFlags source {sf_src} does not match the identifier's source {src}")
+        if index == 0:
+            s.pos[:] = pos
+            s.vel[:] = vel
+            s.status = status
+            s.rx1 = True
+            s.packets1 += 1
+            db.update_calibration(src, status)
+        else:
+            s.current[:] = curr
+            s.special[:] = special
+            s.rx2 = True
+            s.packets2 += 1
+        s.last_rx_us = self.clock.now_us
+        return True
+
+    def _reject(self, ident: int, reason: str) -> bool:
+        self.db.counters.can_rx_rejected += 1
+        rejected = self.rejected
+        rejected.append((self.clock.now_us, ident, reason))
+        if len(rejected) > 16:
+            del rejected[0]
+        return False
+
+    def canClearStatus(self) -> None:
+        """``canClearStatus`` (table 4): reset the controller's error state (bus-off recovery)."""
+        self.db.counters.can_clear_status += 1
+        self.drivers.controller.clear_status()
+
+    def error_status(self) -> tuple[int, int, int]:
+        """``(ERRSTATE, TEC, REC)`` of the Master's controller for the CAN status response:
+        ERRSTATE 0 error-active, 1 error-passive, 2 bus-off; TEC/REC clipped to a byte."""
+        ctl = self.drivers.controller
+        return ERRSTATE[ctl.state], min(ctl.tec, 255), min(ctl.rec, 255)
