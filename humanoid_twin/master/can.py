@@ -30,7 +30,7 @@ from humanoid_twin.protocol.canframes import (
 if TYPE_CHECKING:
     from collections.abc import Callable
 
-    from humanoid_twin.bus import CanNetwork
+    from humanoid_twin.bus.network import CanNetwork
     from humanoid_twin.clock import Clock
 
 # CanController.state -> ERRSTATE byte of the CAN status response (SPEC.md section 2).

@@ -16,7 +16,7 @@ if TYPE_CHECKING:
 
     import can
 
-    from humanoid_twin.bus import CanController, CanNetwork
+    from humanoid_twin.bus.network import CanController, CanNetwork
 
 N_TX_BUFFERS = 3
 N_RX_BUFFERS = 2
@@ -61,9 +61,12 @@ class CanDrivers:
     def myCANSendMessage(self, msg: can.Message) -> bool:
         """``myCANSendMessage`` (table 5): send through the first empty TX buffer.
 
-        A buffer is empty when nothing was requested through it since the last abort
-        (``myCANAbort``); with all three taken, TXB2 is reused. Returns False if refused.
+        A buffer is empty when nothing was requested through it since the controller last had
+        no pending frame or the last abort (``myCANAbort``). Returns False if refused (all
+        three buffers pending, or bus-off).
         """
+        if not self._ctl().pending:
+            self.txb[0] = self.txb[1] = self.txb[2] = None
         for n in range(N_TX_BUFFERS):
             if self.txb[n] is None:
                 return self._send(n, msg)

@@ -16,7 +16,8 @@ from humanoid_twin.master.pic import Pic
 from humanoid_twin.master.usart import Usart
 
 if TYPE_CHECKING:
-    from humanoid_twin.bus import CanController, CanNetwork, SerialLink
+    from humanoid_twin.bus.network import CanController, CanNetwork
+    from humanoid_twin.bus.serial_link import SerialLink
     from humanoid_twin.clock import Clock
 
 

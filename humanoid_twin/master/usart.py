@@ -42,7 +42,7 @@ from humanoid_twin.protocol.rs232 import (
 )
 
 if TYPE_CHECKING:
-    from humanoid_twin.bus import SerialLink
+    from humanoid_twin.bus.serial_link import SerialLink
     from humanoid_twin.clock import Clock
     from humanoid_twin.master.can import MasterCan
 
