@@ -1,0 +1,99 @@
+"""Bit-exact length of a CAN 2.0A data frame (the time a frame occupies the wire).
+
+A standard data frame on the wire (ISO 11898-1, seed 002 slides 15-16):
+
+    SOF(1) ID(11) RTR(1) IDE(1) r0(1) DLC(4) DATA(8n) CRC(15)   <- bit-stuffed region
+    CRC-delimiter(1) ACK-slot(1) ACK-delimiter(1) EOF(7)         <- fixed form
+    IFS / intermission(3)                                        <- before the next SOF
+
+The CRC-15 (generator x^15+x^14+x^10+x^8+x^7+x^4+x^3+1, i.e. 0x4599) is computed over the
+un-stuffed bits SOF..DATA. Bit stuffing: after five consecutive bits of equal value the
+transmitter inserts one bit of the opposite value; the stuff bit itself starts the next run.
+Stuffing covers SOF through the last CRC bit (a run completed by the last CRC bit gets its
+stuff bit before the CRC delimiter).
+
+``frame_bits(id, data)`` = 47 + 8n + stuff bits (44 + 8n frame bits + 3 IFS bits): 111..135
+for an 8-byte frame (the 0..24 stuff-bit bound is floor((34 + 8n - 1) / 4), Davis et al.
+2007; Tindell's older 0..19 bound is exceeded by real frames, see tests/test_bus_can.py).
+"""
+
+from __future__ import annotations
+
+from functools import lru_cache
+
+CRC15_POLY = 0x4599
+# bits after the stuffed region: CRC delimiter, ACK slot, ACK delimiter, EOF(7), IFS(3)
+TRAILER_BITS = 13
+IFS_BITS = 3
+EOF_BITS = 7
+# recessive bits at the end of every frame (ACK delimiter + EOF + IFS): one "11 recessive bits"
+# occurrence for bus-off recovery (seed 000 checkCan)
+TRAILING_RECESSIVE_BITS = 11
+
+
+def crc15(bits: list[int]) -> int:
+    """CRC-15/CAN of a bit sequence (MSB first, initial value 0)."""
+    crc = 0
+    for b in bits:
+        nxt = b ^ ((crc >> 14) & 1)
+        crc = (crc << 1) & 0x7FFF
+        if nxt:
+            crc ^= CRC15_POLY
+    return crc
+
+
+def unstuffed_bits(arbitration_id: int, data: bytes) -> list[int]:
+    """The bits SOF..CRC of a standard data frame, before stuffing."""
+    if not 0 <= arbitration_id <= 0x7FF:
+        raise ValueError(f"standard CAN ID must be 0..0x7FF, got {arbitration_id:#x}")
+    n = len(data)
+    if n > 8:
+        raise ValueError(f"a CAN 2.0 data frame carries at most 8 bytes, got {n}")
+    bits = [0]  # SOF (dominant)
+    bits += [(arbitration_id >> (10 - i)) & 1 for i in range(11)]
+    bits += [0, 0, 0]  # RTR (data frame), IDE (standard), r0
+    bits += [(n >> (3 - i)) & 1 for i in range(4)]
+    for byte in data:
+        bits += [(byte >> (7 - i)) & 1 for i in range(8)]
+    crc = crc15(bits)
+    bits += [(crc >> (14 - i)) & 1 for i in range(15)]
+    return bits
+
+
+def count_stuff_bits(bits: list[int]) -> int:
+    """Number of stuff bits a transmitter inserts into ``bits``."""
+    stuffed = 0
+    run_val = -1
+    run_len = 0
+    for b in bits:
+        if b == run_val:
+            run_len += 1
+        else:
+            run_val = b
+            run_len = 1
+        if run_len == 5:
+            stuffed += 1
+            run_val = 1 - b  # the stuff bit starts a new run
+            run_len = 1
+    return stuffed
+
+
+@lru_cache(maxsize=4096)
+def _frame_bits_cached(arbitration_id: int, data: bytes) -> int:
+    bits = unstuffed_bits(arbitration_id, data)
+    return len(bits) + count_stuff_bits(bits) + TRAILER_BITS
+
+
+def frame_bits(arbitration_id: int, data: bytes) -> int:
+    """Exact length in bits of a CAN 2.0A data frame incl. stuffing, EOF and the 3-bit IFS.
+
+    Cached on ``(arbitration_id, bytes(data))``: the schedule repeats the same frames a lot.
+    """
+    if type(data) is not bytes:
+        data = bytes(data)
+    return _frame_bits_cached(arbitration_id, data)
+
+
+def max_frame_bits(n_bytes: int) -> int:
+    """Worst-case length of a standard data frame of ``n_bytes`` (Davis et al. 2007), incl. IFS."""
+    return 47 + 8 * n_bytes + (34 + 8 * n_bytes - 1) // 4

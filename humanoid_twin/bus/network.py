@@ -1,0 +1,667 @@
+"""The CAN wire in virtual time: arbitration by ID, frame bit times, error confinement.
+
+``CanNetwork`` is the 1 Mbit/s bus between the Master and the 8 Slaves (seed 002 slides 13-30,
+SPEC.md section 3). Each board attaches one ``CanController`` (its PIC18F258 CAN module: 3 TX
+buffers, the acceptance mask/filters of slide 23 as python-can ``can_filters``, TEC/REC and the
+error states). Every controller owns a real python-can bus: by default the project's own
+``humanoid_twin`` interface (:mod:`humanoid_twin.bus.twin_bus`), or python-can's ``virtual`` or
+``socketcan`` by option.
+
+Timing (all integer microseconds on the lockstep :class:`~humanoid_twin.clock.Clock`):
+
+* ``send`` requests transmission at ``clock.now_us`` (TXREQ).
+* When the wire is idle, the pending frame with the lowest ID wins arbitration (ties, which
+  the protocol never produces, go to the earlier request). Every request made up to and
+  including the instant the frame starts (its SOF bit) takes part.
+* The frame occupies ``frame_bits(id, data)`` bit times. At the end of its EOF
+  (``start + frame_bits - 3`` bits) it is put on the sender's python-can bus with
+  ``timestamp`` = that instant in seconds: the receivers' ``on_rx`` (their RXBnIF) run then,
+  and the listeners get it. The wire is idle again after the 3-bit intermission.
+* ``abort()`` (TXABT) drops the controller's frames that have not started; a frame already on
+  the wire finishes, but is not retransmitted if it fails.
+
+See docs/buses.md for the error-confinement rules and the fault-injection hooks.
+"""
+
+from __future__ import annotations
+
+import itertools
+import random
+from collections.abc import Callable
+
+import can
+
+from humanoid_twin.bus.frames import TRAILING_RECESSIVE_BITS, frame_bits
+from humanoid_twin.bus.twin_bus import TwinBus, get_medium, release_medium
+from humanoid_twin.clock import Clock
+
+TWIN_INTERFACE = "humanoid_twin"
+PIC_TX_BUFFERS = 3              # PIC18F258: TXB0..TXB2 (seed 002 slide 21)
+EXTERNAL_TX_QUEUE = 64          # an outside python-can bus (a tool): a socketcan-like TX queue
+
+ERROR_ACTIVE = "error-active"
+ERROR_PASSIVE = "error-passive"
+BUS_OFF = "bus-off"
+ERROR_STATE_CODE = {ERROR_ACTIVE: 0, ERROR_PASSIVE: 1, BUS_OFF: 2}   # SPEC.md section 2
+
+PASSIVE_LIMIT = 127             # TEC or REC > 127 -> error-passive
+BUS_OFF_LIMIT = 255             # TEC > 255 -> bus-off
+RECOVERY_SEQUENCES = 128        # 128 occurrences of 11 consecutive recessive bits
+# error frame after a CRC error: detected after the ACK delimiter, 6-bit error flag, 8-bit
+# error delimiter, 3-bit intermission: an error frame takes frame_bits - 10 + 17 bits.
+ERROR_FLAG_BITS = 6
+ERROR_EXTRA_BITS = 7            # (6 flag + 8 delimiter + 3 IFS) - (7 EOF + 3 IFS)
+SUSPEND_BITS = 8                # error-passive transmitter: suspend transmission after IFS
+
+_OK, _DROP, _CORRUPT = 0, 1, 2
+_channel_ids = itertools.count(1)
+
+
+class CanError(ValueError):
+    """A frame the PIC18F258 configuration of the robot cannot send (seed 002 slide 24)."""
+
+
+class CanController:
+    """One node's CAN module (PIC18F258): 3 TX buffers, TEC/REC, error state.
+
+    Created by :meth:`CanNetwork.attach`. ``bus`` is the node's real python-can bus.
+    """
+
+    __slots__ = (
+        "name", "bus", "tec", "rec", "state", "silenced", "recovering",
+        "frames_sent", "frames_received", "tx_refused", "tx_aborted", "tx_errors", "rx_errors",
+        "bus_off_count", "recoveries",
+        "_net", "_on_rx", "_tx_buffers", "_n_pending", "_off", "_suspend_until",
+        "_rec_count", "_rec_mark", "_filt", "_external",
+    )
+
+    def __init__(self, network: CanNetwork, name: str, on_rx: Callable[[can.Message], None] | None,
+                 tx_buffers: int = PIC_TX_BUFFERS, external: bool = False) -> None:
+        self.name = name
+        self.bus: can.BusABC = None  # type: ignore[assignment]  # set by the network
+        self.tec = 0
+        self.rec = 0
+        self.state = ERROR_ACTIVE
+        self.silenced = False
+        self.recovering = False
+        self.frames_sent = 0
+        self.frames_received = 0
+        self.tx_refused = 0
+        self.tx_aborted = 0
+        self.tx_errors = 0
+        self.rx_errors = 0
+        self.bus_off_count = 0
+        self.recoveries = 0
+        self._net = network
+        self._on_rx = on_rx
+        self._tx_buffers = tx_buffers
+        self._n_pending = 0
+        self._off = False
+        self._suspend_until = 0
+        self._rec_count = 0
+        self._rec_mark = 0
+        self._filt: tuple[tuple[int, int], ...] | None = None
+        self._external = external
+
+    def __repr__(self) -> str:
+        return (f"CanController({self.name!r}, {self.state}, tec={self.tec}, rec={self.rec}, "
+                f"pending={self._n_pending})")
+
+    # -- the firmware's API ------------------------------------------------------------------
+    def send(self, msg: can.Message) -> bool:
+        """Request transmission of ``msg`` now (TXREQ on a free TX buffer: myCANSendMessage).
+
+        Returns False, and counts ``tx_refused``, when all 3 TX buffers are pending or the
+        node is bus-off. The message object is handed over: do not modify it until it is sent
+        or aborted (like the PIC's TX buffer registers while TXREQ is set).
+        """
+        return self._net._request(self, msg)
+
+    def abort(self) -> int:
+        """Abort every TX not yet on the wire (TXABT). Returns how many frames were dropped."""
+        return self._net._abort(self)
+
+    def clear_status(self) -> None:
+        """Reset the error state (canClearStatus on the Master, the recovery in checkCan).
+
+        A bus-off node starts the bus-off recovery: after 128 occurrences of 11 consecutive
+        recessive bits on the wire it is error-active again with TEC = REC = 0 (``recovering``
+        is True meanwhile). A node that is not bus-off has its counters reset at once (the
+        module is re-initialised through configuration mode).
+        """
+        self._net._clear_status(self)
+
+    @property
+    def pending(self) -> int:
+        """TX buffers in use (requested frames not yet completed or aborted)."""
+        return self._n_pending
+
+    @property
+    def error_state_code(self) -> int:
+        """0 error-active, 1 error-passive, 2 bus-off (the ERRSTATE byte of SPEC.md section 2)."""
+        return ERROR_STATE_CODE[self.state]
+
+    # -- receive interrupt (the bus's rx_callback) ------------------------------------------
+    def _on_frame(self, msg: can.Message) -> None:
+        if self._off:
+            return
+        self.frames_received += 1
+        cb = self._on_rx
+        if cb is not None:
+            cb(msg)
+
+
+def _filter_tuple(can_filters: list[dict] | None) -> tuple[tuple[int, int], ...] | None:
+    if not can_filters:
+        return None
+    out = []
+    for f in can_filters:
+        try:
+            mask = int(f["can_mask"])
+            out.append((int(f["can_id"]) & mask, mask))
+        except (KeyError, TypeError, ValueError) as e:
+            raise ValueError(f"a CAN filter needs int 'can_id' and 'can_mask' keys, got {f!r}") from e
+    return tuple(out)
+
+
+class CanNetwork:
+    """The CAN wire: virtual-time frame timing, arbitration by ID, error counters.
+
+    :param clock: the twin's lockstep clock.
+    :param interface: ``"humanoid_twin"`` (default, filtered zero-copy delivery), ``"virtual"``
+        or ``"socketcan"`` (then ``channel`` is e.g. ``"vcan0"``), or any python-can interface.
+    :param channel: channel name; None gives a fresh unique name.
+    :param bitrate: bits per second (1 Mbit/s on the robot, seed 002 slide 15).
+    """
+
+    def __init__(self, clock: Clock, interface: str = TWIN_INTERFACE, channel: str | None = None,
+                 bitrate: int = 1_000_000) -> None:
+        if not isinstance(bitrate, int) or not 0 < bitrate <= 1_000_000:
+            raise ValueError(f"CAN bitrate must be an int in 1..1_000_000 bit/s, got {bitrate!r}")
+        if interface != TWIN_INTERFACE and interface not in can.VALID_INTERFACES:
+            raise ValueError(f"unknown python-can interface {interface!r} "
+                             f"(known: {', '.join(sorted(can.VALID_INTERFACES))})")
+        if channel is None:
+            if interface == "socketcan":
+                raise ValueError("interface='socketcan' needs a channel, e.g. channel='vcan0'")
+            channel = f"twin-{next(_channel_ids)}"
+        self.clock = clock
+        self.interface = interface
+        self.channel = channel
+        self.bitrate = bitrate
+        self._twin = interface == TWIN_INTERFACE
+        self._medium = None
+        if self._twin:
+            medium = get_medium(channel)
+            if medium.wire is not None:
+                raise ValueError(f"CAN channel {channel!r} already belongs to another CanNetwork")
+            medium.wire = self
+            self._medium = medium
+        self._controllers: dict[str, CanController] = {}
+        self._nodes: list[CanController] = []          # attached nodes (not outside tools)
+        self._external: dict[int, CanController] = {}
+        self._listeners: list[can.Listener] = []
+        self._recovering: list[CanController] = []
+        # wire state
+        self._pending: list[tuple[int, int, int, CanController, can.Message, int]] = []
+        self._busy = False          # a decision is scheduled or a frame/error frame is on the wire
+        self._start = 0             # start (SOF) of the frame being decided / on the wire
+        self._current: tuple[int, int, int, CanController, can.Message, int] | None = None
+        self._current_aborted = False
+        self._outcome = _OK
+        self._idle_from = 0         # the wire is idle from this instant (end of last IFS)
+        self._dom_end = 0           # end of the last dominant bit on the wire
+        self._seq = 0
+        self._rec_dirty = False     # some REC may be > 0
+        # faults
+        self._faults_on = False
+        self._drop_prob = 0.0
+        self._corrupt_prob = 0.0
+        self._rng = random.Random(0)
+        # counters
+        self.frames_sent = 0
+        self.frames_by_node: dict[str, int] = {}
+        self.frames_dropped = 0
+        self.error_frames = 0
+        self.busy_us = 0
+        self._closed = False
+        # bound methods used as clock callbacks (no allocation per frame)
+        self._decide_cb = self._decide
+        self._complete_cb = self._complete
+        self._error_cb = self._error
+
+    # -- setup -------------------------------------------------------------------------------
+    def attach(self, name: str, can_filters: list[dict] | None,
+               on_rx: Callable[[can.Message], None]) -> CanController:
+        """Connect a node: its acceptance filters (slide 23) and its RX interrupt ``on_rx``."""
+        if self._closed:
+            raise RuntimeError("CanNetwork was shut down")
+        if not isinstance(name, str) or not name:
+            raise ValueError(f"node name must be a non-empty string, got {name!r}")
+        if name in self._controllers:
+            raise ValueError(f"a node named {name!r} is already attached to {self.channel!r}")
+        if on_rx is not None and not callable(on_rx):
+            raise TypeError(f"on_rx must be callable, got {on_rx!r}")
+        ctrl = CanController(self, name, on_rx)
+        ctrl._filt = _filter_tuple(can_filters)
+        if self._twin:
+            bus = TwinBus(self.channel, can_filters=can_filters, rx_callback=ctrl._on_frame)
+            bus._network_node = True
+        else:
+            kwargs: dict = {}
+            if self.interface == "virtual":
+                kwargs["preserve_timestamps"] = True
+            bus = can.Bus(interface=self.interface, channel=self.channel, can_filters=can_filters,
+                          receive_own_messages=False, **kwargs)
+        ctrl.bus = bus
+        self._controllers[name] = ctrl
+        self._nodes.append(ctrl)
+        self.frames_by_node[name] = 0
+        return ctrl
+
+    def add_listener(self, listener: can.Listener) -> None:
+        """Give ``listener`` every completed frame (virtual timestamps, ``channel`` set), in order.
+
+        Error frames are passed as ``can.Message(is_error_frame=True)``.
+        """
+        if not hasattr(listener, "on_message_received"):
+            raise TypeError(f"a listener needs on_message_received(), got {listener!r}")
+        self._listeners.append(listener)
+
+    def remove_listener(self, listener: can.Listener) -> None:
+        """Stop giving frames to ``listener``."""
+        self._listeners.remove(listener)
+
+    def node(self, name: str) -> CanController:
+        """The controller attached under ``name``."""
+        try:
+            return self._controllers[name]
+        except KeyError:
+            raise KeyError(f"no CAN node named {name!r} (attached: {sorted(self._controllers)})") from None
+
+    @property
+    def nodes(self) -> list[CanController]:
+        """The attached controllers, in attach order."""
+        return list(self._nodes)
+
+    def shutdown(self) -> None:
+        """Shut every node's python-can bus down and release the channel."""
+        if self._closed:
+            return
+        self._closed = True
+        for c in self._nodes + list(self._external.values()):
+            if not c._external:
+                c.bus.shutdown()
+        for lst in self._listeners:
+            stop = getattr(lst, "stop", None)
+            if stop is not None:
+                stop()
+        if self._medium is not None:
+            release_medium(self._medium)
+
+    def __enter__(self) -> CanNetwork:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.shutdown()
+
+    # -- fault injection ---------------------------------------------------------------------
+    def set_faults(self, drop_prob: float = 0.0, corrupt_prob: float = 0.0, seed: int = 0) -> None:
+        """Random frame faults, deterministic per ``seed``.
+
+        ``drop_prob``: the frame completes (the sender counts a success, listeners log it) but
+        no node receives it (a lost frame). ``corrupt_prob``: the frame is destroyed by an error
+        frame: nobody receives it, sender TEC +8, every other node REC +1, and the sender
+        retransmits it automatically.
+        """
+        for label, p in (("drop_prob", drop_prob), ("corrupt_prob", corrupt_prob)):
+            if not 0.0 <= p <= 1.0:
+                raise ValueError(f"{label} must be in [0, 1], got {p!r}")
+        if drop_prob + corrupt_prob > 1.0:
+            raise ValueError("drop_prob + corrupt_prob must not exceed 1")
+        self._drop_prob = float(drop_prob)
+        self._corrupt_prob = float(corrupt_prob)
+        self._faults_on = drop_prob > 0.0 or corrupt_prob > 0.0
+        self._rng = random.Random(seed)
+
+    def silence(self, node_name: str, silent: bool = True) -> None:
+        """Make a node stop (or resume) transmitting; it still receives. Its requests stay pending."""
+        c = self.node(node_name)
+        c.silenced = bool(silent)
+        if not silent and self._pending and not self._busy:
+            self._kick()
+
+    def force_bus_off(self, node_name: str) -> None:
+        """Put a node in bus-off at once (TEC past 255) until its ``clear_status()``."""
+        c = self.node(node_name)
+        c.tec = BUS_OFF_LIMIT + 1
+        self._update_state(c)
+
+    # -- counters ----------------------------------------------------------------------------
+    @property
+    def bus_load(self) -> float:
+        """Fraction of virtual time the wire carried frames (incl. IFS and error frames)."""
+        now = self.clock.now_us
+        return self.busy_us / now if now > 0 else 0.0
+
+    def stats(self) -> dict:
+        """Counters for the recording."""
+        return {
+            "frames": self.frames_sent,
+            "frames_dropped": self.frames_dropped,
+            "error_frames": self.error_frames,
+            "tx_refused": sum(c.tx_refused for c in self._nodes),
+            "tx_aborted": sum(c.tx_aborted for c in self._nodes),
+            "bus_load": self.bus_load,
+            "frames_by_node": dict(self.frames_by_node),
+            "nodes": {c.name: {"state": c.state, "tec": c.tec, "rec": c.rec} for c in self._nodes},
+        }
+
+    # -- timing helpers ----------------------------------------------------------------------
+    def _dur(self, bits: int) -> int:
+        """Duration of ``bits`` bit times in integer microseconds (rounded up)."""
+        br = self.bitrate
+        return (bits * 1_000_000 + br - 1) // br
+
+    # -- transmit path -----------------------------------------------------------------------
+    def _request(self, ctrl: CanController, msg: can.Message) -> bool:
+        if ctrl._off or ctrl._n_pending >= ctrl._tx_buffers:
+            ctrl.tx_refused += 1
+            return False
+        data = msg.data
+        arb = msg.arbitration_id
+        if msg.is_extended_id or msg.is_remote_frame or msg.is_error_frame or msg.is_fd:
+            raise CanError(
+                f"{ctrl.name}: only standard 11-bit data frames are sent (seed 002 slide 24); "
+                f"build the message with can.Message(..., is_extended_id=False), got {msg!r}")
+        if not 0 <= arb <= 0x7FF:
+            raise CanError(f"{ctrl.name}: standard CAN ID must be 0..0x7FF, got {arb:#x}")
+        n = len(data)
+        if n > 8 or msg.dlc != n:
+            raise CanError(f"{ctrl.name}: a frame carries 0..8 data bytes with dlc == len(data), "
+                           f"got dlc={msg.dlc}, {n} bytes")
+        bits = frame_bits(arb, data)
+        self._seq += 1
+        self._pending.append((arb, self._seq, self.clock.now_us, ctrl, msg, bits))
+        ctrl._n_pending += 1
+        if not self._busy:
+            self._kick()
+        return True
+
+    def _external_send(self, bus: TwinBus, msg: can.Message) -> None:
+        """A frame sent on this channel by a python-can bus that is not a node (a tool)."""
+        ctrl = self._external.get(id(bus))
+        if ctrl is None or ctrl.bus is not bus:
+            ctrl = CanController(self, f"external:{id(bus):x}", None, EXTERNAL_TX_QUEUE, external=True)
+            ctrl.bus = bus
+            self._external[id(bus)] = ctrl
+            self.frames_by_node.setdefault(ctrl.name, 0)
+        if not self._request(ctrl, msg):
+            raise can.CanOperationError(f"humanoid_twin channel {self.channel}: TX queue full")
+
+    def _kick(self) -> None:
+        """The wire is (or will be) idle and frames are pending: arbitrate at the next SOF."""
+        now = self.clock.now_us
+        start = now if now > self._idle_from else self._idle_from
+        self._busy = True
+        self._start = start
+        self.clock.schedule(start + 1, self._decide_cb)
+
+    def _decide(self) -> None:
+        """End of the SOF bit: every request made up to the SOF instant has joined arbitration."""
+        start = self._start
+        best = None
+        for e in self._pending:
+            if e[2] > start:
+                continue
+            c = e[3]
+            if c.silenced or c._suspend_until > start:
+                continue
+            if best is None or e[0] < best[0] or (e[0] == best[0] and e[1] < best[1]):
+                best = e
+        if best is None:
+            self._busy = False
+            nxt = None
+            for e in self._pending:
+                c = e[3]
+                if c.silenced:
+                    continue
+                t = e[2] if e[2] > c._suspend_until else c._suspend_until
+                if nxt is None or t < nxt:
+                    nxt = t
+            if nxt is not None:
+                self._busy = True
+                now = self.clock.now_us
+                self._start = max(nxt, now, self._idle_from)
+                self.clock.schedule(self._start + 1, self._decide_cb)
+            return
+        if self._recovering:
+            self._close_recovery_runs(start)
+        self._pending.remove(best)
+        self._current = best
+        self._current_aborted = False
+        bits = best[5]
+        outcome = _OK
+        if self._faults_on:
+            r = self._rng.random()
+            if r < self._drop_prob:
+                outcome = _DROP
+            elif r < self._drop_prob + self._corrupt_prob:
+                outcome = _CORRUPT
+        self._outcome = outcome
+        if outcome == _CORRUPT:
+            end = start + self._dur(bits + ERROR_EXTRA_BITS)
+            self._dom_end = end - self._dur(TRAILING_RECESSIVE_BITS)
+            self.clock.schedule(start + self._dur(bits - 10 + ERROR_FLAG_BITS), self._error_cb)
+        else:
+            end = start + self._dur(bits)
+            self._dom_end = end - self._dur(TRAILING_RECESSIVE_BITS)
+            self.clock.schedule(start + self._dur(bits - 3), self._complete_cb)
+        self._idle_from = end
+
+    def _complete(self) -> None:
+        """End of EOF: the frame is valid; deliver it to the receivers and listeners."""
+        arb, _seq, _req, ctrl, msg, bits = self._current  # type: ignore[misc]
+        self._current = None
+        t = self.clock.now_us
+        msg.timestamp = t / 1_000_000
+        msg.channel = self.channel
+        msg.is_rx = True
+        if ctrl._n_pending:
+            ctrl._n_pending -= 1
+        ctrl.frames_sent += 1
+        if ctrl.tec and not ctrl._off:
+            ctrl.tec -= 1
+            self._update_state(ctrl)
+        self.frames_sent += 1
+        self.frames_by_node[ctrl.name] += 1
+        self.busy_us += self._idle_from - self._start
+        if self._rec_dirty:
+            self._rx_success(ctrl)
+        if self._outcome == _DROP:
+            self.frames_dropped += 1
+        elif self._twin:
+            ctrl.bus._deliver(msg)  # type: ignore[attr-defined]
+        else:
+            self._send_and_drain(ctrl, msg, t)
+        if self._listeners:
+            copy = can.Message(timestamp=msg.timestamp, arbitration_id=arb, is_extended_id=False,
+                               channel=self.channel, dlc=msg.dlc, data=bytes(msg.data), is_rx=True)
+            for lst in self._listeners:
+                lst.on_message_received(copy)
+        if self._pending:
+            self._kick()
+        else:
+            self._busy = False
+
+    def _send_and_drain(self, ctrl: CanController, msg: can.Message, t_us: int) -> None:
+        """Another python-can interface: put the frame on the sender's bus, drain the others."""
+        ctrl.bus.send(msg)
+        ts = t_us / 1_000_000
+        socket_like = self.interface != "virtual"
+        for c in self._nodes:
+            if c is ctrl:
+                continue
+            expected = socket_like and _accepts(c._filt, msg.arbitration_id)
+            bus = c.bus
+            while True:
+                m = bus.recv(timeout=0)
+                if m is None and expected:
+                    m = bus.recv(timeout=0.05)   # kernel loopback may lag a little
+                if m is None:
+                    break
+                expected = False
+                m.timestamp = ts
+                m.channel = self.channel
+                c._on_frame(m)
+
+    def _error(self) -> None:
+        """A corrupted frame: error frame, counters, automatic retransmission."""
+        e = self._current
+        assert e is not None
+        self._current = None
+        ctrl = e[3]
+        self.error_frames += 1
+        ctrl.tx_errors += 1
+        ctrl.tec += 8
+        self._update_state(ctrl)
+        for c in self._nodes:
+            if c is not ctrl and not c._off:
+                c.rx_errors += 1
+                if c.rec < BUS_OFF_LIMIT:
+                    c.rec += 1
+                    self._update_state(c)
+                self._rec_dirty = True
+        self.busy_us += self._idle_from - self._start
+        if self._listeners:
+            err = can.Message(timestamp=self.clock.now_us / 1_000_000, is_error_frame=True,
+                              is_extended_id=False, channel=self.channel, is_rx=True)
+            for lst in self._listeners:
+                lst.on_message_received(err)
+        if ctrl._off or self._current_aborted:
+            if not ctrl._off:
+                ctrl._n_pending -= 1
+                ctrl.tx_aborted += 1
+        else:
+            self._pending.append(e)     # automatic retransmission, same request order
+            if ctrl.state == ERROR_PASSIVE:
+                ctrl._suspend_until = self._idle_from + self._dur(SUSPEND_BITS)
+        if self._pending:
+            self._kick()
+        else:
+            self._busy = False
+
+    def _abort(self, ctrl: CanController) -> int:
+        n = 0
+        pending = self._pending
+        if ctrl._n_pending:
+            keep = [e for e in pending if e[3] is not ctrl]
+            n = len(pending) - len(keep)
+            if n:
+                pending[:] = keep
+                ctrl._n_pending -= n
+                ctrl.tx_aborted += n
+        cur = self._current
+        if cur is not None and cur[3] is ctrl:
+            self._current_aborted = True
+        return n
+
+    # -- error confinement -------------------------------------------------------------------
+    def _rx_success(self, sender: CanController) -> None:
+        dirty = False
+        for c in self._nodes:
+            if c is sender or c._off:
+                continue
+            r = c.rec
+            if r:
+                c.rec = r - 1 if r <= PASSIVE_LIMIT else 119   # ISO 11898: back to 119..127
+                self._update_state(c)
+                if c.rec:
+                    dirty = True
+        self._rec_dirty = dirty
+
+    def _update_state(self, c: CanController) -> None:
+        if c.state == BUS_OFF:
+            return
+        if c.tec > BUS_OFF_LIMIT:
+            c.tec = BUS_OFF_LIMIT      # the PIC's TXERRCNT is an 8-bit register
+            c.state = BUS_OFF
+            c._off = True
+            c.bus_off_count += 1
+            # the TX buffers are cleared: pending requests are dropped
+            if c._n_pending:
+                keep = [e for e in self._pending if e[3] is not c]
+                dropped = len(self._pending) - len(keep)
+                self._pending[:] = keep
+                c.tx_aborted += dropped
+            c._n_pending = 0
+        elif c.tec > PASSIVE_LIMIT or c.rec > PASSIVE_LIMIT:
+            c.state = ERROR_PASSIVE
+        else:
+            c.state = ERROR_ACTIVE
+
+    def _clear_status(self, c: CanController) -> None:
+        if c.state != BUS_OFF:
+            c.tec = 0
+            c.rec = 0
+            c.state = ERROR_ACTIVE
+            return
+        if c.recovering:
+            return
+        c.recovering = True
+        c._rec_count = 0
+        c._rec_mark = self.clock.now_us
+        self._recovering.append(c)
+        self._schedule_recovery_check(c)
+
+    def _bits_in(self, us: int) -> int:
+        return us * self.bitrate // 1_000_000
+
+    def _recovery_progress(self, c: CanController, t: int) -> int:
+        """11-recessive-bit sequences seen by ``c`` up to ``t`` if the wire stayed idle."""
+        begin = c._rec_mark if c._rec_mark > self._dom_end else self._dom_end
+        if t <= begin:
+            return c._rec_count
+        return c._rec_count + self._bits_in(t - begin) // TRAILING_RECESSIVE_BITS
+
+    def _close_recovery_runs(self, start: int) -> None:
+        """A new frame starts at ``start``: close the recessive run of every recovering node."""
+        for c in list(self._recovering):
+            c._rec_count = self._recovery_progress(c, start)
+            c._rec_mark = start
+            if c._rec_count >= RECOVERY_SEQUENCES:
+                self._recovered(c)
+
+    def _schedule_recovery_check(self, c: CanController) -> None:
+        begin = max(c._rec_mark, self._dom_end, self.clock.now_us)
+        need = RECOVERY_SEQUENCES - c._rec_count
+        t = begin + self._dur(need * TRAILING_RECESSIVE_BITS)
+
+        def check() -> None:
+            if not c.recovering:
+                return
+            now = self.clock.now_us
+            if self._recovery_progress(c, now) >= RECOVERY_SEQUENCES:
+                self._recovered(c)
+            else:
+                self._schedule_recovery_check(c)
+
+        self.clock.schedule(t, check)
+
+    def _recovered(self, c: CanController) -> None:
+        c.recovering = False
+        c._off = False
+        c.tec = 0
+        c.rec = 0
+        c.state = ERROR_ACTIVE
+        c.recoveries += 1
+        self._recovering.remove(c)
+
+
+def _accepts(filt: tuple[tuple[int, int], ...] | None, arbitration_id: int) -> bool:
+    if filt is None:
+        return True
+    for can_id, mask in filt:
+        if arbitration_id & mask == can_id:
+            return True
+    return False

@@ -1,0 +1,258 @@
+"""The project's own python-can interface, ``interface="humanoid_twin"``.
+
+Buses opened on the same channel name share one medium (in this process). ``send(msg)``
+delivers the frame at once, and only to the other members whose acceptance filters (python-can
+``can_filters``: ``can_id``/``can_mask``, the PIC's masks and filters of seed 002 slide 23) take
+it. A member with an ``rx_callback`` (its receive-interrupt line) has it called with the message;
+the others queue it for ``recv()``.
+
+When a :class:`~humanoid_twin.bus.network.CanNetwork` owns the channel, frames sent by a bus
+that is not one of the network's nodes (a user script, a python-can tool) are handed to the
+network, which puts them on the wire in virtual time (arbitration, frame length), like any
+node's. The network's own nodes are delivered through ``_deliver`` at the end of each frame.
+
+The delivery is zero-copy: every receiver gets the same :class:`can.Message` object. Treat a
+received message as read-only.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections import deque
+from collections.abc import Callable
+from typing import Any, Protocol
+
+import can
+from can.bus import BusABC
+
+DEFAULT_CHANNEL = "humanoid_twin"
+
+RxCallback = Callable[[can.Message], None]
+
+
+class _Wire(Protocol):
+    """What the medium needs from a network that owns the channel."""
+
+    def _external_send(self, bus: TwinBus, msg: can.Message) -> None: ...
+
+
+class _Medium:
+    """All TwinBus members of one channel (the electrical bus)."""
+
+    __slots__ = ("channel", "members", "wire", "_routes")
+
+    def __init__(self, channel: str) -> None:
+        self.channel = channel
+        self.members: list[TwinBus] = []
+        self.wire: _Wire | None = None
+        # (arbitration_id, is_extended) -> members whose filters accept it
+        self._routes: dict[tuple[int, bool], tuple[TwinBus, ...]] = {}
+
+    def invalidate(self) -> None:
+        self._routes.clear()
+
+    def route(self, arbitration_id: int, is_extended: bool) -> tuple[TwinBus, ...]:
+        key = (arbitration_id, is_extended)
+        r = self._routes.get(key)
+        if r is None:
+            r = tuple(b for b in self.members if b._accepts(arbitration_id, is_extended))
+            self._routes[key] = r
+        return r
+
+
+_MEDIA: dict[str, _Medium] = {}
+_MEDIA_LOCK = threading.Lock()
+
+
+def _join(bus: TwinBus, channel: str) -> _Medium:
+    with _MEDIA_LOCK:
+        medium = _MEDIA.get(channel)
+        if medium is None:
+            medium = _MEDIA[channel] = _Medium(channel)
+        medium.members.append(bus)
+        medium.invalidate()
+        return medium
+
+
+def _leave(bus: TwinBus) -> None:
+    with _MEDIA_LOCK:
+        medium = bus._medium
+        if bus in medium.members:
+            medium.members.remove(bus)
+            medium.invalidate()
+        if not medium.members and medium.wire is None and _MEDIA.get(medium.channel) is medium:
+            del _MEDIA[medium.channel]
+
+
+def get_medium(channel: str) -> _Medium:
+    """The medium of ``channel`` (created if needed); used by CanNetwork to own a channel."""
+    with _MEDIA_LOCK:
+        medium = _MEDIA.get(channel)
+        if medium is None:
+            medium = _MEDIA[channel] = _Medium(channel)
+        return medium
+
+
+def release_medium(medium: _Medium) -> None:
+    """Forget an empty medium (the owning network shut down)."""
+    with _MEDIA_LOCK:
+        medium.wire = None
+        if not medium.members and _MEDIA.get(medium.channel) is medium:
+            del _MEDIA[medium.channel]
+
+
+def active_channels() -> list[str]:
+    """Names of the channels that have members or an owning network."""
+    with _MEDIA_LOCK:
+        return sorted(_MEDIA)
+
+
+class TwinBus(BusABC):
+    """An in-process CAN bus member delivering only frames its acceptance filters take.
+
+    ``can.Bus(interface="humanoid_twin", channel="x", can_filters=[...])`` opens one.
+
+    :param channel: channel name; buses with the same name share one medium.
+    :param can_filters: python-can filters (``can_id``, ``can_mask``, optional ``extended``).
+    :param receive_own_messages: also deliver this bus's own frames to itself.
+    :param rx_callback: called with each accepted frame instead of queueing it (an interrupt).
+    """
+
+    def __init__(
+        self,
+        channel: Any = None,
+        can_filters: can.typechecking.CanFilters | None = None,
+        receive_own_messages: bool = False,
+        rx_callback: RxCallback | None = None,
+        **kwargs: object,
+    ) -> None:
+        if channel is None:
+            channel = DEFAULT_CHANNEL
+        if not isinstance(channel, str) or not channel:
+            raise ValueError(f"humanoid_twin channel must be a non-empty string, got {channel!r}")
+        self.channel = channel
+        self.channel_info = f"humanoid_twin channel {channel}"
+        self.receive_own_messages = bool(receive_own_messages)
+        self.rx_callback: RxCallback | None = rx_callback
+        self._queue: deque[can.Message] = deque()
+        self._cond = threading.Condition()
+        self._waiting = 0
+        self._filt: tuple[tuple[int, int, bool | None], ...] | None = None
+        self._network_node = False  # set by CanNetwork for its own nodes
+        self._medium = _join(self, channel)
+        try:
+            super().__init__(channel=channel, can_filters=can_filters, **kwargs)
+        except BaseException:
+            _leave(self)
+            raise
+
+    # -- filters -----------------------------------------------------------------------------
+    def _apply_filters(self, filters: can.typechecking.CanFilters | None) -> None:
+        """Precompute the filters as int tuples (no dict work per frame)."""
+        if not filters:
+            self._filt = None
+        else:
+            out = []
+            for f in filters:
+                try:
+                    can_id = int(f["can_id"])
+                    can_mask = int(f["can_mask"])
+                except (KeyError, TypeError, ValueError) as e:
+                    raise ValueError(
+                        f"a CAN filter needs int 'can_id' and 'can_mask' keys, got {f!r}"
+                    ) from e
+                if can_id < 0 or can_mask < 0 or can_id > 0x1FFFFFFF or can_mask > 0x1FFFFFFF:
+                    raise ValueError(f"CAN filter id/mask out of range: {f!r}")
+                ext = f.get("extended")
+                out.append((can_id & can_mask, can_mask, None if ext is None else bool(ext)))
+            self._filt = tuple(out)
+        medium = getattr(self, "_medium", None)
+        if medium is not None:
+            medium.invalidate()
+
+    def _accepts(self, arbitration_id: int, is_extended: bool) -> bool:
+        filt = self._filt
+        if filt is None:
+            return True
+        for can_id, mask, ext in filt:
+            if ext is not None and ext != is_extended:
+                continue
+            if arbitration_id & mask == can_id:
+                return True
+        return False
+
+    # -- transmit ------------------------------------------------------------------------------
+    def send(self, msg: can.Message, timeout: float | None = None) -> None:
+        """Put ``msg`` on the channel.
+
+        Without a network owning the channel the frame is delivered immediately; with one, a
+        frame from an outside bus joins the network's virtual-time arbitration.
+        """
+        if self._is_shutdown:
+            raise can.CanOperationError("cannot send on a bus that was shut down")
+        if not isinstance(msg, can.Message):
+            raise TypeError(f"send() needs a can.Message, got {type(msg).__name__}")
+        wire = self._medium.wire
+        if wire is not None and not self._network_node:
+            wire._external_send(self, msg)
+            return
+        if msg.channel is None:
+            msg.channel = self.channel
+        if not msg.timestamp:
+            msg.timestamp = time.time()
+        self._deliver(msg)
+
+    def _deliver(self, msg: can.Message) -> None:
+        """Hand ``msg`` (already on the wire) to every accepting member of the channel."""
+        for bus in self._medium.route(msg.arbitration_id, msg.is_extended_id):
+            if bus is self and not self.receive_own_messages:
+                continue
+            cb = bus.rx_callback
+            if cb is not None:
+                cb(msg)
+            else:
+                bus._queue.append(msg)
+                if bus._waiting:
+                    with bus._cond:
+                        bus._cond.notify()
+
+    # -- receive -------------------------------------------------------------------------------
+    def _recv_internal(self, timeout: float | None) -> tuple[can.Message | None, bool]:
+        q = self._queue
+        if q:
+            return q.popleft(), True
+        if timeout is not None and timeout <= 0:
+            return None, True
+        with self._cond:
+            self._waiting += 1
+            try:
+                self._cond.wait_for(lambda: bool(q) or self._is_shutdown, timeout)
+            finally:
+                self._waiting -= 1
+        if q:
+            return q.popleft(), True
+        return None, True
+
+    @property
+    def pending(self) -> int:
+        """Number of frames queued for ``recv()``."""
+        return len(self._queue)
+
+    def shutdown(self) -> None:
+        """Detach from the medium."""
+        if self._is_shutdown:
+            return
+        super().shutdown()
+        _leave(self)
+        with self._cond:
+            self._cond.notify_all()
+
+    def __del__(self) -> None:
+        # no OS resources: leaving the medium quietly is enough (BusABC would log a warning)
+        if not self._is_shutdown:
+            self.shutdown()
+
+    @staticmethod
+    def _detect_available_configs() -> list[can.typechecking.AutoDetectedConfig]:
+        return [{"interface": "humanoid_twin", "channel": ch} for ch in active_channels()]
