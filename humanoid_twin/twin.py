@@ -1,0 +1,108 @@
+"""The whole twin in one object: plant, buses, Master, 8 Slaves, on one lockstep clock.
+
+    twin = Twin(seed=0)
+    port = twin.open_port()          # pyserial Serial on "twin://<name>", same API as a real port
+    port.write(frame); port.read(6)  # reading advances virtual time (lockstep)
+
+The same host code drives a real robot: only the pyserial URL changes.
+"""
+
+from __future__ import annotations
+
+import itertools
+from collections.abc import Callable
+from pathlib import Path
+
+import serial
+
+from humanoid_twin.bus.network import CanNetwork
+from humanoid_twin.bus.protocol_twin import register_link, unregister_link
+from humanoid_twin.bus.serial_link import SerialLink
+from humanoid_twin.clock import US_PER_S, Clock
+from humanoid_twin.hardware import N_SCU, PWM_PERIOD_US
+from humanoid_twin.master.master import Master
+from humanoid_twin.plant import Plant
+from humanoid_twin.slave.slave import Slave
+
+_names = itertools.count()
+
+
+class Twin:
+    """Plant + Master + 8 Slaves + CAN + RS-232 on one virtual clock."""
+
+    def __init__(
+        self,
+        *,
+        seed: int = 0,
+        model_path: str | Path | None = None,
+        can_interface: str = "humanoid_twin",
+        can_channel: str | None = None,
+        name: str | None = None,
+    ) -> None:
+        self.seed = seed
+        self.clock = Clock()
+        self.plant = Plant(model_path, seed=seed)
+        self.network = CanNetwork(self.clock, interface=can_interface, channel=can_channel)
+        self.link = SerialLink(self.clock)
+        self.master = Master(self.clock, self.network, self.link)
+        # Slave PWM periods are not synchronised on the robot: each board starts its 20 ms
+        # period at its own phase, drawn from the seed (docs/firmware.md).
+        phases = _phases(seed)
+        self.slaves: dict[int, Slave] = {
+            scu: Slave(scu, self.clock, self.plant, self.network, phase_us=phases[scu - 1], seed=seed)
+            for scu in range(1, N_SCU + 1)
+        }
+        self.name = name or f"twin{next(_names)}"
+        self.url = f"twin://{self.name}"
+        register_link(self.name, self.link, self.advance_to)
+        self._closed = False
+
+    # -- time ---------------------------------------------------------------------------
+    @property
+    def now_s(self) -> float:
+        """Virtual time in seconds."""
+        return self.clock.now_us / US_PER_S
+
+    def advance_to(self, t_us: int) -> None:
+        """Run every board and bus up to virtual time ``t_us``, then bring the physics there."""
+        self.clock.run_until(t_us)
+        self.plant.advance_to(t_us)
+
+    def run_for(self, seconds: float) -> None:
+        """Advance the whole twin by ``seconds`` of virtual time."""
+        self.advance_to(self.clock.now_us + round(seconds * US_PER_S))
+
+    def every(self, period_us: int, callback: Callable[[], None], first_us: int | None = None) -> None:
+        """Call ``callback`` periodically in virtual time (recording, supervisors, tilt profiles)."""
+        self.clock.call_every(period_us, callback, first_us)
+
+    # -- host side ----------------------------------------------------------------------
+    def open_port(self, timeout: float = 0.2) -> serial.Serial:
+        """Open the host end of the RS-232 link, as pyserial sees a real port (115200 8E1)."""
+        return serial.serial_for_url(
+            self.url, baudrate=115200, bytesize=8, parity=serial.PARITY_EVEN, stopbits=1, timeout=timeout
+        )
+
+    def close(self) -> None:
+        """Detach the link from the URL registry and shut the CAN buses down."""
+        if self._closed:
+            return
+        self._closed = True
+        unregister_link(self.name)
+        close = getattr(self.network, "shutdown", None)
+        if close is not None:
+            close()
+
+    def __enter__(self) -> Twin:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+def _phases(seed: int) -> list[int]:
+    """Deterministic per-seed PWM phase of each Slave, in microseconds within one period."""
+    import random
+
+    rng = random.Random(seed * 7919 + 17)
+    return [rng.randrange(0, PWM_PERIOD_US, 250) for _ in range(N_SCU)]
