@@ -1,0 +1,509 @@
+"""The robot: the only code that touches MuJoCo state.
+
+What each Slave board sees and does on its servo and sensor cables (seed 000 section 3, module
+PIC2: ``servoActuation``, ``updateServoMeasures``, ``sampleExtraSensors``), implemented on the
+MuJoCo model of ``models/`` (docs/model.md), plus ground truth for recording and tests.
+
+Hot paths (``set_pwm``, ``read_servos``, ``read_force_adc``, ``advance_to``) are called about
+1200 times per simulated second: they use precomputed addresses, plain Python ints and floats,
+and pre-drawn noise; ``advance_to`` runs all the physics steps due in one ``mj_step`` call.
+"""
+
+from __future__ import annotations
+
+import math
+import numbers
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import mujoco
+import numpy as np
+
+from humanoid_twin import hardware
+from humanoid_twin.plant import constants as C  # noqa: N812
+from humanoid_twin.plant.geometry import convex_hull, signed_distance
+
+DEFAULT_MODEL = Path(__file__).resolve().parents[2] / "models" / "scene.xml"
+
+FOOT_BODIES: tuple[str, str] = ("r_foot", "l_foot")
+PAD_SUFFIXES: tuple[str, str, str, str] = ("fl", "fr", "rl", "rr")   # table 12 order
+_TILT_MAX_DEG = 45.0
+_TILT_PROFILE_CHUNK_US = 10_000    # a tilt profile is re-evaluated at least every 10 ms
+_NOISE_BLOCK = 8192
+_GEOM_TYPES = {int(v): k for k, v in {
+    "plane": mujoco.mjtGeom.mjGEOM_PLANE, "sphere": mujoco.mjtGeom.mjGEOM_SPHERE,
+    "capsule": mujoco.mjtGeom.mjGEOM_CAPSULE, "ellipsoid": mujoco.mjtGeom.mjGEOM_ELLIPSOID,
+    "cylinder": mujoco.mjtGeom.mjGEOM_CYLINDER, "box": mujoco.mjtGeom.mjGEOM_BOX,
+}.items()}
+
+
+class PlantError(Exception):
+    """The model cannot be loaded or does not match what the boards expect."""
+
+
+class PlantInputError(PlantError, ValueError):
+    """A caller passed an invalid argument (SCU address, pulse width, tilt, ...)."""
+
+
+@dataclass(frozen=True)
+class GroundTruth:
+    """What really happens in the plant at ``t_s`` (for recording and tests, never for firmware).
+
+    World frame: x forward, y left, z up, metres. Foot frame (table 12): x to the robot's right,
+    y forward, millimetres, origin on the sole under the ankle. Feet are keyed ``r_foot`` /
+    ``l_foot``; pad arrays follow table 12 order (front-left, front-right, rear-left, rear-right).
+    Forces are the normal components of the MuJoCo contact forces of the pads (not the touch
+    sensors).
+    """
+
+    t_s: float
+    com: np.ndarray                          # (3,) whole-robot centre of mass, world
+    trunk_tilt_deg: float                    # angle between the trunk z axis and the vertical
+    trunk_height_m: float                    # trunk origin height (0.29 m at the stand pose)
+    joint_angles_deg: dict[str, float]       # joint frame
+    pad_forces_n: dict[str, np.ndarray]      # (4,) per foot
+    foot_cop_mm: dict[str, np.ndarray | None]  # (2,) per foot in its foot frame; None unloaded
+    cop_world_xy: np.ndarray | None          # (2,) overall CoP; None when airborne
+    support_polygon_xy: np.ndarray           # (k, 2) convex hull of the pads in contact, CCW
+    cop_margin_mm: float                     # signed distance of the CoP inside it; -inf airborne
+    total_normal_force_n: float
+    fell: bool
+
+
+@dataclass(frozen=True)
+class GeomInfo:
+    """A geom to draw: its body, MuJoCo type name, size (MuJoCo convention), pose in the body
+    frame (quaternion xyzw) and colour."""
+
+    name: str
+    body: str
+    type: str
+    size: tuple[float, float, float]
+    pos: tuple[float, float, float]
+    quat_xyzw: tuple[float, float, float, float]
+    rgba: tuple[float, float, float, float]
+    group: int
+
+
+def _check_scu(scu: int) -> None:
+    if not isinstance(scu, int) or isinstance(scu, bool) or not 1 <= scu <= hardware.N_SCU:
+        raise PlantInputError(f"SCU address must be an int 1..{hardware.N_SCU}, got {scu!r}")
+
+
+def _load_model(path: Path) -> tuple[mujoco.MjModel, list[str]]:
+    if not path.is_file():
+        raise PlantError(f"MuJoCo model file not found: {path}")
+    warnings: list[str] = []
+    previous = mujoco.get_mju_user_warning()
+    mujoco.set_mju_user_warning(warnings.append)
+    try:
+        model = mujoco.MjModel.from_xml_path(str(path))
+    except Exception as exc:  # mujoco raises ValueError with the compiler's message
+        raise PlantError(f"cannot load MuJoCo model {path}: {exc}") from exc
+    finally:
+        mujoco.set_mju_user_warning(previous)
+    return model, warnings
+
+
+class Plant:
+    """The MuJoCo robot as the Slave boards see it (servo cables and foot sensors).
+
+    ``Plant()`` loads ``models/scene.xml`` and resets to the ``stand`` keyframe with every PWM
+    off (limp servos, as at power-up). ``seed`` fixes the potentiometer offsets (drawn once per
+    plant) and the sensor noise streams (restarted by ``reset``).
+    """
+
+    def __init__(self, model_path: str | Path | None = None, *, seed: int = 0) -> None:
+        path = Path(model_path) if model_path is not None else DEFAULT_MODEL
+        self.model_path = path
+        self.model, self.load_warnings = _load_model(path)
+        self.data = mujoco.MjData(self.model)
+        self.seed = int(seed)
+        m = self.model
+        ts_us = m.opt.timestep * 1e6
+        self.timestep_us: int = round(ts_us)
+        if self.timestep_us <= 0 or abs(ts_us - self.timestep_us) > 1e-6:
+            raise PlantError(f"{path}: timestep {m.opt.timestep} s is not a whole number of microseconds")
+        self.t_us: int = 0
+
+        def need(kind: mujoco.mjtObj, name: str) -> int:
+            idx = mujoco.mj_name2id(m, kind, name)
+            if idx < 0:
+                raise PlantError(f"{path}: the model has no {kind.name[6:].lower()} named {name!r}")
+            return idx
+
+        # per SCU: (qpos adr, dof adr, actuator id, sign, stall, damping) x 3
+        self._servo: dict[int, tuple[tuple[int, int, int, int, float, float], ...]] = {}
+        self._kp = np.zeros(m.nu)
+        for scu, joints in hardware.SERVO_JOINTS.items():
+            rows = []
+            for joint in joints:
+                j = need(mujoco.mjtObj.mjOBJ_JOINT, joint)
+                a = need(mujoco.mjtObj.mjOBJ_ACTUATOR, f"{joint}_act")
+                if m.actuator_trnid[a, 0] != j:
+                    raise PlantError(f"{path}: actuator {joint}_act does not drive joint {joint}")
+                stall = float(m.actuator_forcerange[a, 1])
+                if not m.actuator_forcelimited[a] or stall <= 0:
+                    raise PlantError(f"{path}: actuator {joint}_act needs a forcerange (stall torque)")
+                self._kp[a] = m.actuator_gainprm[a, 0]
+                rows.append((int(m.jnt_qposadr[j]), int(m.jnt_dofadr[j]), a, C.SERVO_SIGN[joint],
+                             stall, float(m.dof_damping[m.jnt_dofadr[j]])))
+            self._servo[scu] = tuple(rows)
+        self._powered = [True] * m.nu
+
+        # feet: body, sole site, pad geoms and touch sensor addresses (table 12 order)
+        self._trunk = need(mujoco.mjtObj.mjOBJ_BODY, "trunk")
+        self._platform_mocap = int(m.body_mocapid[need(mujoco.mjtObj.mjOBJ_BODY, "platform")])
+        if self._platform_mocap < 0:
+            raise PlantError(f"{path}: body 'platform' must be a mocap body")
+        self._sole_site: dict[str, int] = {}
+        self._touch_adr: dict[str, tuple[int, int, int, int]] = {}
+        self._pad_of_geom: dict[int, tuple[int, int]] = {}
+        for f, foot in enumerate(FOOT_BODIES):
+            need(mujoco.mjtObj.mjOBJ_BODY, foot)
+            self._sole_site[foot] = need(mujoco.mjtObj.mjOBJ_SITE, f"{foot}_sole")
+            adrs = []
+            for p, suffix in enumerate(PAD_SUFFIXES):
+                g = need(mujoco.mjtObj.mjOBJ_GEOM, f"{foot}_pad_{suffix}")
+                self._pad_of_geom[g] = (f, p)
+                s = need(mujoco.mjtObj.mjOBJ_SENSOR, f"{foot}_{suffix}_touch")
+                adrs.append(int(m.sensor_adr[s]))
+            self._touch_adr[foot] = tuple(adrs)  # type: ignore[assignment]
+        self._foot_touch_of_scu = {scu: self._touch_adr[foot] for scu, foot in hardware.FOOT_OF_SCU.items()}
+        hinges = [j for j in range(m.njnt) if m.jnt_type[j] == mujoco.mjtJoint.mjJNT_HINGE]
+        self._joint_names = [m.joint(j).name for j in hinges]
+        self._joint_qadr = [int(m.jnt_qposadr[j]) for j in hinges]
+        self._body_names = tuple(m.body(b).name for b in range(1, m.nbody))
+        self._force6 = np.zeros(6)
+
+        # the hardware: potentiometer offsets, drawn once per plant (what calibration estimates)
+        ss = np.random.SeedSequence(self.seed)
+        s_hw, self._s_pot, self._s_force = ss.spawn(3)
+        offsets = np.random.default_rng(s_hw).uniform(-C.POT_OFFSET_RANGE_DEG, C.POT_OFFSET_RANGE_DEG,
+                                                      size=(hardware.N_SCU, hardware.N_SERVOS))
+        self.pot_b_true_deg: dict[int, tuple[float, float, float]] = {
+            scu: tuple(hardware.POT_B_NOMINAL_DEG + float(o) for o in offsets[scu - 1])  # type: ignore[misc]
+            for scu in hardware.SERVO_JOINTS
+        }
+        self._tilt_deg = 0.0
+        self._tilt_profile: Callable[[float], float] | None = None
+        self.reset()
+
+    # --- state --------------------------------------------------------------------------------
+    def reset(self, keyframe: str = "stand") -> None:
+        """Reset to ``keyframe`` at t = 0, every PWM off, platform level, noise restarted."""
+        m = self.model
+        k = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_KEY, keyframe)
+        if k < 0:
+            names = [m.key(i).name for i in range(m.nkey)]
+            raise PlantInputError(f"unknown keyframe {keyframe!r}; the model has {names}")
+        mujoco.mj_resetDataKeyframe(m, self.data, k)
+        self.data.time = 0.0
+        self.t_us = 0
+        for a in range(m.nu):
+            self._set_powered(a, False)
+        self._tilt_profile = None
+        self._apply_tilt(0.0)
+        self._pot_rng = np.random.default_rng(self._s_pot)
+        self._force_rng = np.random.default_rng(self._s_force)
+        self._pot_noise: list[float] = []
+        self._force_noise: list[float] = []
+        mujoco.mj_forward(m, self.data)
+
+    def advance_to(self, t_us: int) -> None:
+        """Run the physics steps due up to ``t_us`` (never past it) in one ``mj_step`` call.
+
+        The platform tilt profile, if any, is evaluated at the start of the call (and at least
+        every 10 ms of a long call).
+        """
+        due = t_us - self.t_us
+        if due < 0:
+            raise PlantInputError(f"cannot advance the plant backwards: {t_us} us < {self.t_us} us")
+        k = due // self.timestep_us
+        if k <= 0:
+            return
+        if self._tilt_profile is None:
+            mujoco.mj_step(self.model, self.data, nstep=k)
+            self.t_us += k * self.timestep_us
+            return
+        chunk = max(1, _TILT_PROFILE_CHUNK_US // self.timestep_us)
+        while k > 0:
+            n = min(k, chunk)
+            self._apply_tilt(self._tilt_profile(self.t_us / 1e6))
+            mujoco.mj_step(self.model, self.data, nstep=n)
+            self.t_us += n * self.timestep_us
+            k -= n
+
+    # --- the platform -----------------------------------------------------------------------------
+    def set_tilt_deg(self, deg: float) -> None:
+        """Tilt the platform about the world lateral (y) axis, toes up positive (cancels a profile)."""
+        self._tilt_profile = None
+        self._apply_tilt(deg)
+
+    def set_tilt_profile(self, fn: Callable[[float], float] | None) -> None:
+        """Tilt the platform as ``fn(t_s) -> deg`` (evaluated in ``advance_to``); None stops it."""
+        if fn is not None and not callable(fn):
+            raise PlantInputError(f"tilt profile must be a callable t_s -> deg, got {fn!r}")
+        self._tilt_profile = fn
+
+    @property
+    def tilt_deg(self) -> float:
+        """Current platform tilt (degrees, toes up positive)."""
+        return self._tilt_deg
+
+    def _apply_tilt(self, deg: float) -> None:
+        try:
+            deg = float(deg)
+        except (TypeError, ValueError):
+            raise PlantInputError(f"tilt must be a number of degrees, got {deg!r}") from None
+        if not math.isfinite(deg) or abs(deg) > _TILT_MAX_DEG:
+            raise PlantInputError(f"tilt must be within +-{_TILT_MAX_DEG} deg, got {deg}")
+        half = -math.radians(deg) / 2.0     # toes up = rotation about -y
+        self.data.mocap_quat[self._platform_mocap] = (math.cos(half), 0.0, math.sin(half), 0.0)
+        self._tilt_deg = deg
+
+    # --- what a Slave board sees and does ----------------------------------------------------------
+    @staticmethod
+    def scu_joint_names(scu: int) -> tuple[str, str, str]:
+        """The joints driven by servos 0..2 of board ``scu`` (hardware.SERVO_JOINTS)."""
+        _check_scu(scu)
+        return hardware.SERVO_JOINTS[scu]
+
+    def _set_powered(self, a: int, on: bool) -> None:
+        kp = self._kp[a] if on else 0.0
+        self.model.actuator_gainprm[a, 0] = kp
+        self.model.actuator_biasprm[a, 1] = -kp
+        self._powered[a] = on
+
+    def set_pwm(self, scu: int, pulses_us: Sequence[int | None]) -> None:
+        """PWM high time of the three servos of ``scu`` (PIC2 ``servoActuation``/``statusPWM``).
+
+        A pulse of 600..2400 us commands -90..90 degrees (``hardware.deg_from_pulse``); ``None``
+        switches that servo's PWM off (the servo goes limp: no actuator torque, only its gear
+        friction and damping remain).
+        """
+        rows = self._servo.get(scu) if type(scu) is int else None
+        if rows is None:
+            _check_scu(scu)
+        if len(pulses_us) != hardware.N_SERVOS:
+            raise PlantInputError(f"SCU {scu}: need {hardware.N_SERVOS} pulses, got {len(pulses_us)}")
+        lo = hardware.pulse_from_deg(hardware.POS_MIN_DEG)
+        hi = hardware.pulse_from_deg(hardware.POS_MAX_DEG)
+        for p in pulses_us:
+            if p is not None and (isinstance(p, bool) or not isinstance(p, numbers.Real)
+                                  or not lo <= p <= hi):
+                raise PlantInputError(f"SCU {scu}: pulse width must be {lo}..{hi} us or None, got {p!r}")
+        ctrl = self.data.ctrl
+        powered = self._powered
+        for (_, _, a, sign, _, _), p in zip(rows, pulses_us, strict=True):  # type: ignore[arg-type]
+            if p is None:
+                if powered[a]:
+                    self._set_powered(a, False)
+                continue
+            ctrl[a] = sign * (p - hardware.PULSE_CENTER_US) * _RAD_PER_US
+            if not powered[a]:
+                self._set_powered(a, True)
+
+    def read_servos(self, scu: int) -> tuple[list[int], list[int]]:
+        """Potentiometer ADC counts and current pulse widths (us) of the three servos of ``scu``.
+
+        Pot: ADC = round((b_true - servo_deg) * POT_COUNTS_PER_DEG + noise), clamped 0..1023,
+        i.e. the manual's pos = b - m * ADC (PIC2 ``updateServoMeasures``). Current: width =
+        CURRENT_PULSE_FULL_US * min(1, |motor torque| / stall) + idle when powered, where the
+        motor torque is the actuator force minus the back-EMF damping term; 0 when PWM is off.
+        """
+        rows = self._servo.get(scu) if type(scu) is int else None
+        if rows is None:
+            _check_scu(scu)
+        qpos = self.data.qpos
+        qvel = self.data.qvel
+        force = self.data.actuator_force
+        b_true = self.pot_b_true_deg[scu]
+        noise = self._pot_noise
+        if len(noise) < 3:
+            noise.extend(self._pot_rng.normal(0.0, C.POT_NOISE_STD_COUNTS, _NOISE_BLOCK).tolist())
+        adc: list[int] = []
+        cur: list[int] = []
+        full = hardware.CURRENT_PULSE_FULL_US
+        for i, (qadr, dadr, a, sign, stall, damping) in enumerate(rows):
+            deg = sign * float(qpos[qadr]) * _DEG_PER_RAD
+            v = round((b_true[i] - deg) * hardware.POT_COUNTS_PER_DEG + noise.pop())
+            adc.append(0 if v < 0 else (hardware.POT_ADC_MAX if v > hardware.POT_ADC_MAX else v))
+            if self._powered[a]:
+                torque = abs(float(force[a]) - damping * float(qvel[dadr]))
+                w = C.CURRENT_IDLE_US + round(full * (torque / stall if torque < stall else 1.0))
+                cur.append(w if w < full else full)
+            else:
+                cur.append(0)
+        return adc, cur
+
+    def read_force_adc(self, scu: int) -> list[int]:
+        """The four force sensors of the foot of ``scu`` as 8-bit ADC values (table 12 order).
+
+        ADC = clamp(round(F / FORCE_N_PER_COUNT + noise), 0, 255), F the pad's touch-sensor
+        normal force; an unloaded sensor reads 0. Boards without a foot read [0, 0, 0, 0]
+        (PIC2 ``sampleExtraSensors`` input).
+        """
+        adrs = self._foot_touch_of_scu.get(scu) if type(scu) is int else None
+        if adrs is None:
+            _check_scu(scu)
+            return [0, 0, 0, 0]
+        sd = self.data.sensordata
+        noise = self._force_noise
+        if len(noise) < 4:
+            noise.extend(self._force_rng.normal(0.0, C.FORCE_NOISE_STD_COUNTS, _NOISE_BLOCK).tolist())
+        out: list[int] = []
+        for adr in adrs:
+            f = float(sd[adr])
+            if f <= 0.0:
+                out.append(0)
+                continue
+            v = round(f * _COUNTS_PER_N + noise.pop())
+            out.append(0 if v < 0 else (hardware.FORCE_ADC_MAX if v > hardware.FORCE_ADC_MAX else v))
+        return out
+
+    def servo_angle_deg(self, scu: int, i: int) -> float:
+        """True shaft angle of servo ``i`` (0..2) of ``scu``, servo frame, degrees (ground truth)."""
+        _check_scu(scu)
+        if not isinstance(i, int) or not 0 <= i < hardware.N_SERVOS:
+            raise PlantInputError(f"servo index must be 0..{hardware.N_SERVOS - 1}, got {i!r}")
+        qadr, _, _, sign, _, _ = self._servo[scu][i]
+        return sign * float(self.data.qpos[qadr]) * _DEG_PER_RAD
+
+    def servo_powered(self, scu: int, i: int) -> bool:
+        """Whether servo ``i`` of ``scu`` currently receives PWM."""
+        _check_scu(scu)
+        return self._powered[self._servo[scu][i][2]]
+
+    def keyframe_pulses(self, keyframe: str = "stand") -> dict[int, list[int]]:
+        """PWM pulses (us, per SCU) that hold the joint angles of ``keyframe`` (whole degrees)."""
+        m = self.model
+        k = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_KEY, keyframe)
+        if k < 0:
+            raise PlantInputError(f"unknown keyframe {keyframe!r}")
+        qpos = m.key_qpos[k]
+        return {
+            scu: [hardware.pulse_from_deg(round(sign * math.degrees(qpos[qadr])))
+                  for qadr, _, _, sign, _, _ in rows]
+            for scu, rows in self._servo.items()
+        }
+
+    # --- ground truth ------------------------------------------------------------------------------
+    def truth(self) -> GroundTruth:
+        """Ground truth of the current state (contact CoP from ``mj_contactForce``)."""
+        m, d = self.model, self.data
+        trunk_z = d.xmat[self._trunk].reshape(3, 3)[:, 2]
+        tilt = math.degrees(math.acos(max(-1.0, min(1.0, float(trunk_z[2])))))
+        height = float(d.xpos[self._trunk, 2])
+
+        pad_f = np.zeros((2, 4))
+        foot_sum = np.zeros((2, 2))       # sum of F * (x, y) in each foot frame, mm
+        world_sum = np.zeros(2)
+        contact_pts: list[tuple[float, float]] = []
+        frames = [(d.site_xpos[self._sole_site[f]], d.site_xmat[self._sole_site[f]].reshape(3, 3))
+                  for f in FOOT_BODIES]
+        f6 = self._force6
+        pad_of = self._pad_of_geom
+        for c in range(d.ncon):
+            g1, g2 = d.contact.geom[c]
+            hit = pad_of.get(int(g1)) or pad_of.get(int(g2))
+            if hit is None:
+                continue
+            mujoco.mj_contactForce(m, d, c, f6)
+            fn = float(f6[0])
+            if fn <= 0.0:
+                continue
+            foot, pad = hit
+            pos = d.contact.pos[c]
+            origin, rot = frames[foot]
+            local = (pos - origin) @ rot * 1000.0
+            pad_f[foot, pad] += fn
+            foot_sum[foot] += fn * local[:2]
+            world_sum += fn * pos[:2]
+            contact_pts.append((float(pos[0]), float(pos[1])))
+
+        foot_tot = pad_f.sum(axis=1)
+        total = float(foot_tot.sum())
+        foot_cop = {foot: (foot_sum[f] / foot_tot[f] if foot_tot[f] > C.LOADED_MIN_N else None)
+                    for f, foot in enumerate(FOOT_BODIES)}
+        hull = convex_hull(contact_pts)
+        if total > C.LOADED_MIN_N:
+            cop = world_sum / total
+            margin = signed_distance(cop, hull) * 1000.0
+        else:
+            cop = None
+            margin = -math.inf
+        return GroundTruth(
+            t_s=self.t_us / 1e6,
+            com=d.subtree_com[self._trunk].copy(),
+            trunk_tilt_deg=tilt,
+            trunk_height_m=height,
+            joint_angles_deg={n: math.degrees(float(d.qpos[a]))
+                              for n, a in zip(self._joint_names, self._joint_qadr, strict=True)},
+            pad_forces_n={foot: pad_f[f].copy() for f, foot in enumerate(FOOT_BODIES)},
+            foot_cop_mm=foot_cop,
+            cop_world_xy=cop,
+            support_polygon_xy=np.array(hull, dtype=float).reshape(-1, 2),
+            cop_margin_mm=margin,
+            total_normal_force_n=total,
+            fell=tilt > C.FELL_TILT_DEG or height < C.FELL_HEIGHT_M,
+        )
+
+    def body_poses(self) -> tuple[tuple[str, ...], np.ndarray, np.ndarray]:
+        """Names, world positions (n, 3) and quaternions (n, 4, xyzw) of every body but the world."""
+        d = self.data
+        return self._body_names, d.xpos[1:].copy(), d.xquat[1:][:, [1, 2, 3, 0]].copy()
+
+    def geometry(self) -> list[GeomInfo]:
+        """The geoms to draw: visual geoms (group 2), force-sensor pads, platform and floor.
+
+        Poses are local to the body (``body_poses`` gives the body's world pose); the floor and
+        the other world geoms are in the world body ``world``.
+        """
+        m = self.model
+        out = []
+        for g in range(m.ngeom):
+            name = m.geom(g).name
+            if m.geom_group[g] != 2 and g not in self._pad_of_geom and name not in ("platform", "floor"):
+                continue
+            mat = m.geom_matid[g]
+            rgba = m.mat_rgba[mat] if mat >= 0 else m.geom_rgba[g]
+            q = m.geom_quat[g]
+            out.append(GeomInfo(
+                name=name,
+                body=m.body(m.geom_bodyid[g]).name,
+                type=_GEOM_TYPES.get(int(m.geom_type[g]), str(int(m.geom_type[g]))),
+                size=tuple(float(x) for x in m.geom_size[g]),  # type: ignore[arg-type]
+                pos=tuple(float(x) for x in m.geom_pos[g]),  # type: ignore[arg-type]
+                quat_xyzw=(float(q[1]), float(q[2]), float(q[3]), float(q[0])),
+                rgba=tuple(float(x) for x in rgba),  # type: ignore[arg-type]
+                group=int(m.geom_group[g]),
+            ))
+        return out
+
+    # --- frames --------------------------------------------------------------------------------------
+    def _sole(self, side: str) -> int:
+        foot = _SIDES.get(side)
+        if foot is None:
+            raise PlantInputError(f"foot side must be one of {sorted(_SIDES)}, got {side!r}")
+        return self._sole_site[foot]
+
+    def foot_frame_to_world(self, side: str, xy_mm: Sequence[float]) -> np.ndarray:
+        """World point (m, (3,)) of a point ``xy_mm`` of the foot frame (on the sole plane)."""
+        s = self._sole(side)
+        local = np.array([xy_mm[0], xy_mm[1], 0.0], dtype=float) / 1000.0
+        return self.data.site_xpos[s] + self.data.site_xmat[s].reshape(3, 3) @ local
+
+    def world_to_foot_frame(self, side: str, p_world: Sequence[float]) -> np.ndarray:
+        """Foot-frame xy (mm, (2,)) of a world point (m), projected on the sole plane."""
+        s = self._sole(side)
+        rel = np.asarray(p_world, dtype=float)[:3] - self.data.site_xpos[s]
+        return (rel @ self.data.site_xmat[s].reshape(3, 3))[:2] * 1000.0
+
+
+_RAD_PER_US = math.radians(1.0) / hardware.PULSE_US_PER_DEG
+_DEG_PER_RAD = 180.0 / math.pi
+_COUNTS_PER_N = 1.0 / hardware.FORCE_N_PER_COUNT
+_SIDES = {"r": "r_foot", "right": "r_foot", "r_foot": "r_foot",
+          "l": "l_foot", "left": "l_foot", "l_foot": "l_foot"}
