@@ -1,0 +1,221 @@
+"""``humanoid-twin``: run a scenario headless, serve the twin to any serial client, view a recording.
+
+SPEC.md section 6 is the contract (scripts and CI depend on it):
+
+    humanoid-twin run SCENARIO [--duration S] [--T S] [--motion DEG] [--perna 1|2] [--out FILE.rrd]
+                               [--can-log FILE] [--control none|locomotion|reaction|balance]
+                               [--tilt DEG] [--seed N] [--json]
+    humanoid-twin serve [--pty | --tcp PORT] [--host 127.0.0.1]
+    humanoid-twin view FILE.rrd
+
+A bad flag, an unknown scenario or an unwritable output path: one line on stderr, exit code 2.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import signal
+import subprocess
+import sys
+from pathlib import Path
+
+EXIT_USAGE = 2
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse, but errors are one line (``humanoid-twin: error: ...``) and exit 2."""
+
+    def error(self, message: str) -> None:  # type: ignore[override]
+        sys.stderr.write(f"humanoid-twin: error: {message}\n")
+        raise SystemExit(EXIT_USAGE)
+
+
+def _usage_error(message: str) -> SystemExit:
+    sys.stderr.write(f"humanoid-twin: error: {message}\n")
+    return SystemExit(EXIT_USAGE)
+
+
+def _positive(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+    if not math.isfinite(value) or value <= 0:
+        raise argparse.ArgumentTypeError(f"must be a positive number of seconds, got {text!r}")
+    return value
+
+
+def _degrees(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number of degrees: {text!r}") from None
+    if not math.isfinite(value) or abs(value) > 90:
+        raise argparse.ArgumentTypeError(f"must be within -90..90 degrees, got {text!r}")
+    return value
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The CLI's argument parser (exposed for the docs and the tests)."""
+    from humanoid_twin.scenarios import CONTROL_CHOICES, SCENARIOS
+
+    parser = _Parser(
+        prog="humanoid-twin",
+        description="Digital twin of the University of Aveiro humanoid's legs and its 2006 control system.",
+    )
+    sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
+
+    run = sub.add_parser(
+        "run",
+        help="run a scenario headless, write a rerun recording, print a summary",
+        description="Run a scenario headless against the in-process twin (host -> RS-232 -> Master -> "
+        "CAN -> Slaves -> MuJoCo) and write a rerun recording.",
+    )
+    run.add_argument("scenario", choices=SCENARIOS, help="the motion to run")
+    run.add_argument("--duration", type=_positive, help="simulated seconds (default: the motion's own "
+                     "length plus boot and settling)")
+    run.add_argument("--T", type=_positive, help="the planner's movement period T (s)")
+    run.add_argument("--motion", type=_degrees, help="the planner's motion amplitude (degrees)")
+    run.add_argument("--perna", type=int, default=1, choices=(1, 2), help="levantar_perna: leg to lift "
+                     "(1 right, 2 left)")
+    run.add_argument("--out", type=Path, help="rerun recording to write (default: SCENARIO.rrd)")
+    run.add_argument("--no-record", action="store_true", help="do not write a recording")
+    run.add_argument("--can-log", type=Path, help="CAN log to write; format by suffix (.asc .blf .log "
+                     ".csv .trc ...), python-can writers")
+    run.add_argument("--control", choices=tuple(CONTROL_CHOICES), help="override the control type the "
+                     "planner sets")
+    run.add_argument("--tilt", type=_degrees, default=0.0, help="tilt the floor platform slowly about "
+                     "the lateral axis to DEG (toes up positive)")
+    run.add_argument("--seed", type=int, default=0, help="random seed (sensor noise, servo offsets, "
+                     "board phases)")
+    run.add_argument("--json", action="store_true", help="print the summary as one JSON object on the "
+                     "last line of stdout")
+    run.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
+
+    serve = sub.add_parser(
+        "serve",
+        help="serve the twin in real time on a pty or TCP port for any serial client",
+        description="Run the twin in real time. The first line on stdout is the port to open "
+        "(a pty path, or socket://HOST:PORT with --tcp). Runs until killed.",
+    )
+    where = serve.add_mutually_exclusive_group()
+    where.add_argument("--pty", action="store_true", help="serve on a pseudo-terminal (default)")
+    where.add_argument("--tcp", type=int, metavar="PORT", help="serve on TCP PORT (0: any free port)")
+    serve.add_argument("--host", default="127.0.0.1", help="address to bind with --tcp (default 127.0.0.1)")
+    serve.add_argument("--seed", type=int, default=0, help="random seed")
+    serve.add_argument("--tilt", type=_degrees, default=0.0, help="tilt the platform slowly to DEG")
+
+    view = sub.add_parser("view", help="open a recording in the rerun viewer",
+                          description="Open FILE.rrd in the rerun viewer (same as `rerun FILE.rrd`).")
+    view.add_argument("file", type=Path, help="the .rrd recording")
+    return parser
+
+
+def _check_writable(path: Path, what: str) -> None:
+    parent = path.expanduser().resolve().parent
+    if path.exists() and path.is_dir():
+        raise _usage_error(f"{what} {path} is a directory")
+    if not parent.is_dir():
+        raise _usage_error(f"{what} {path}: directory {parent} does not exist")
+    if not os.access(parent, os.W_OK) or (path.exists() and not os.access(path, os.W_OK)):
+        raise _usage_error(f"{what} {path} is not writable")
+
+
+def cmd_run(args: argparse.Namespace) -> int:
+    """``humanoid-twin run``."""
+    from humanoid_twin.scenarios import RunOptions, ScenarioError, run
+
+    out = None if args.no_record else (args.out or Path(f"{args.scenario}.rrd"))
+    if out is not None:
+        if out.suffix != ".rrd":
+            raise _usage_error(f"--out {out}: a rerun recording must end in .rrd")
+        _check_writable(out, "--out")
+    if args.can_log is not None:
+        from humanoid_twin.recording.can_log import check_log_path
+
+        try:
+            check_log_path(args.can_log)
+        except (ValueError, OSError) as exc:
+            raise _usage_error(f"--can-log {args.can_log}: {exc}") from None
+        _check_writable(args.can_log, "--can-log")
+    opts = RunOptions(
+        scenario=args.scenario, duration=args.duration, T=args.T, motion=args.motion, perna=args.perna,
+        out=out, can_log=args.can_log, control=args.control, tilt=args.tilt, seed=args.seed,
+        progress=not args.no_progress,
+    )
+    bar = None
+    on_progress = None
+    if opts.progress:
+        from tqdm import tqdm
+
+        bar = tqdm(total=100, unit="%", desc=f"{args.scenario} (simulated)", file=sys.stderr,
+                   bar_format="{desc}: {percentage:3.0f}%|{bar}| {postfix}", leave=False)
+
+        def on_progress(t: float, duration: float) -> None:
+            bar.n = min(100.0, 100.0 * t / duration) if duration > 0 else 100.0
+            bar.set_postfix_str(f"t={t:.1f}/{duration:.1f} s", refresh=False)
+            bar.refresh()
+
+    try:
+        summary = run(opts, on_progress=on_progress)
+    except ScenarioError as exc:
+        sys.stderr.write(f"humanoid-twin: {exc}\n")
+        return 1
+    finally:
+        if bar is not None:
+            bar.close()
+    if out is not None:
+        summary["recording"] = str(out)
+    if args.can_log is not None:
+        summary["can_log"] = str(args.can_log)
+    _print_summary(summary, args.json)
+    return 0
+
+
+def _print_summary(summary: dict, as_json: bool) -> None:
+    width = max(len(k) for k in summary)
+    for key, value in summary.items():
+        print(f"{key:<{width}}  {value}")
+    if as_json:
+        print(json.dumps(summary, sort_keys=False))
+    sys.stdout.flush()
+
+
+def cmd_serve(args: argparse.Namespace) -> int:
+    """``humanoid-twin serve``: real-time pacing, the port on the first stdout line."""
+    from humanoid_twin.serve import serve
+
+    stop = {"flag": False}
+
+    def _stop(signum: int, frame: object) -> None:
+        stop["flag"] = True
+
+    signal.signal(signal.SIGTERM, _stop)
+    signal.signal(signal.SIGINT, _stop)
+    return serve(tcp_port=args.tcp, host=args.host, seed=args.seed, tilt=args.tilt,
+                 should_stop=lambda: stop["flag"])
+
+
+def cmd_view(args: argparse.Namespace) -> int:
+    """``humanoid-twin view FILE.rrd``: the rerun viewer shipped with rerun-sdk."""
+    if not args.file.is_file():
+        raise _usage_error(f"no such recording: {args.file}")
+    return subprocess.call([sys.executable, "-m", "rerun", str(args.file)])
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point of the ``humanoid-twin`` console script."""
+    args = build_parser().parse_args(argv)
+    handler = {"run": cmd_run, "serve": cmd_serve, "view": cmd_view}[args.command]
+    try:
+        return handler(args)
+    except KeyboardInterrupt:
+        sys.stderr.write("humanoid-twin: interrupted\n")
+        return 130
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
