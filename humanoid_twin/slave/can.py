@@ -1,0 +1,207 @@
+"""Module CAN of the Slave firmware (seed 000 section 3, table 18; seed 002 slides 23, 29-31;
+seed 000 fig. 9, ``lowISR`` of module PIC2).
+
+``initCan`` attaches the board's CAN controller to the network with the slide 23 filters and
+``lowISR`` as its receive interrupt. ``lowISR`` (slide 29, fig. 9), for each packet the filters
+let in (every Master frame: the destination is not in the slaves' mask):
+
+1. not for this board (destination in the identifier) or not an actuation -> ignored;
+2. abort the previous TX (PIC TXABT);
+3. ``receiveCanMessage``: the packet into the actuator database;
+4. if the packet arrived while the PWM pulses are being generated (the first
+   ``hardware.PWM_BUSY_US`` of the board's PWM period), no answer (slide 29: "PWM control can
+   cause jitter up to 2 ms. In this case, response is not sent");
+5. otherwise ``sendCanMessage`` of the sensor packet with the same index, :data:`ISR_LATENCY_US`
+   after the end of the received frame (the interrupt entry, the copy out of RXBn and the load
+   of TXBn on the PIC at 40 MHz / 10 MIPS; docs/firmware.md).
+
+The sensor packets are built from the sensor database by the main loop once per tick
+(``prepareSensorPackets``): the sensor database only changes there, so the interrupt only copies
+bytes, as the PIC did from its global database (slide 31).
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Any
+
+import can
+
+from humanoid_twin.hardware import MASTER, PWM_BUSY_US, PWM_PERIOD_US
+from humanoid_twin.protocol.canframes import (
+    OP_ACTUATION,
+    OP_SENSORS,
+    PayloadError,
+    can_id,
+    pack_sensors1,
+    pack_sensors2,
+    slave_filters,
+    split_id,
+    status_byte,
+    unpack_actuation1,
+    unpack_actuation2,
+)
+from humanoid_twin.slave.database import Global
+
+if TYPE_CHECKING:
+    from humanoid_twin.clock import Clock
+
+__all__ = ["ISR_LATENCY_US", "SlaveCan"]
+
+ISR_LATENCY_US = 20   # end of the received frame -> TXREQ of the answer (docs/firmware.md)
+
+
+class SlaveCan:
+    """The CAN module of one Slave (its part of the low-priority interrupt too)."""
+
+    __slots__ = (
+        "address",
+        "clock",
+        "db",
+        "phase_us",
+        "controller",
+        "node_name",
+        "payload",
+        "calib_request",
+        "_sensor_ids",
+        "_tx_index",
+        "_tx_due_us",
+        "rx_packets",
+        "rx_ignored",
+        "rx_errors",
+        "tx_packets",
+        "tx_silent",
+        "bus_off_recoveries",
+        "last_rx_us",
+    )
+
+    def __init__(self, address: int, clock: Clock, db: Global, phase_us: int) -> None:
+        self.address = address
+        self.clock = clock
+        self.db = db
+        self.phase_us = phase_us
+        self.controller: Any = None
+        self.node_name = f"slave{address}"
+        self._sensor_ids = (can_id(address, MASTER, 0, OP_SENSORS), can_id(address, MASTER, 1, OP_SENSORS))
+        self.payload: list[bytes] = [bytes(8), bytes(8)]   # Sensors 1 / Sensors 2, ready to send
+        self.calib_request = False       # Calib bit 0 -> 1 seen (handled by the main loop)
+        self._tx_index = 0
+        self._tx_due_us = -1
+        # counters (recording, tests)
+        self.rx_packets = 0              # actuation packets taken
+        self.rx_ignored = 0              # frames for other boards / not actuation
+        self.rx_errors = 0               # malformed actuation packets dropped
+        self.tx_packets = 0              # sensor packets handed to the controller
+        self.tx_silent = 0               # packets left unanswered (PWM window)
+        self.bus_off_recoveries = 0
+        self.last_rx_us = -1
+        self.prepareSensorPackets()
+
+    def initCan(self, network: Any) -> None:
+        """``initCan`` (table 18): the CAN peripheral on the network, slide 23 mask/filters,
+        receive interrupt = :meth:`lowISR`."""
+        self.controller = network.attach(self.node_name, slave_filters(), self.lowISR)
+
+    # -- interrupt ------------------------------------------------------------------------------
+    def lowISR(self, msg: can.Message) -> None:
+        """``lowISR`` (table 17, fig. 9, slide 29): the CAN receive interrupt (RXBnIF)."""
+        arb = msg.arbitration_id
+        if (arb >> 3) & 0x0F != self.address or arb & 0x03 != OP_ACTUATION or arb >> 7 != MASTER:
+            self.rx_ignored += 1
+            return
+        _src, _dst, index, _op = split_id(arb)
+        self.controller.abort()                    # abort the previous TX
+        self._tx_due_us = -1                       # and an answer still in the ISR
+        if not self.receiveCanMessage(index, msg.data):
+            return
+        now = self.clock.now_us
+        if (now - self.phase_us) % PWM_PERIOD_US < PWM_BUSY_US:
+            self.tx_silent += 1                    # PWM interference: no answer
+            return
+        self._tx_index = index
+        self._tx_due_us = now + ISR_LATENCY_US
+        self.clock.schedule(self._tx_due_us, self._isr_send)
+
+    def _isr_send(self) -> None:
+        if self.clock.now_us != self._tx_due_us:   # superseded by a later packet
+            return
+        self._tx_due_us = -1
+        self.sendCanMessage(self._tx_index)
+
+    # -- table 18 -------------------------------------------------------------------------------
+    def receiveCanMessage(self, index: int, data: bytes | bytearray) -> bool:
+        """``receiveCanMessage`` (table 18): an actuation packet into the actuator database.
+        Returns False (and counts it) for a malformed packet, which changes nothing."""
+        act = self.db.actuators
+        try:
+            if index == 0:
+                refs, speeds, control, kd3 = unpack_actuation1(data)
+            else:
+                ki, kp, kd1, kd2 = unpack_actuation2(data)
+        except PayloadError:
+            self.rx_errors += 1
+            return False
+        self.rx_packets += 1
+        act.received += 1
+        self.last_rx_us = self.clock.now_us
+        if index == 0:
+            servo = act.servo
+            ctl = act.control
+            for i in range(3):
+                servo[i].ref = refs[i]
+                servo[i].speed = speeds[i]
+            ctl[0].type = control & 3
+            ctl[1].type = (control >> 2) & 3
+            ctl[2].type = (control >> 4) & 3
+            ctl[2].kd = kd3
+            act.sysStatus.pwm = bool(control & 0x80)
+            calib = bool(control & 0x40)
+            if calib and not act.sysStatus.calib:
+                # Calib request 0 -> 1: a new calibration. Report "not calibrated" from this
+                # answer on, so the Master keeps asking until the new calibration is done.
+                self.calib_request = True
+                st = self.db.sensors.sysStatus
+                if st.calib:
+                    st.calib = False
+                    self.prepareSensorPackets()
+            act.sysStatus.calib = calib
+        else:
+            ctl = act.control
+            for i in range(3):
+                ctl[i].ki = ki[i]
+                ctl[i].kp = kp[i]
+            ctl[0].kd = kd1
+            ctl[1].kd = kd2
+        return True
+
+    def sendCanMessage(self, index: int) -> None:
+        """``sendCanMessage`` (table 18): the sensor packet ``index`` (0: positions, velocities,
+        status; 1: currents, force sensors) to the Master."""
+        self.tx_packets += 1
+        msg = can.Message(
+            arbitration_id=self._sensor_ids[index], data=self.payload[index], is_extended_id=False
+        )
+        self.controller.send(msg)
+
+    def checkCan(self) -> bool:
+        """``checkCan`` (table 18): if the controller is bus-off, recover it (``clear_status``).
+        Returns True when a recovery was started."""
+        c = self.controller
+        if c is not None and c.state == "bus-off" and not getattr(c, "recovering", False):
+            c.clear_status()
+            self.bus_off_recoveries += 1
+            return True
+        return False
+
+    def prepareSensorPackets(self) -> None:
+        """Build both sensor packets from the sensor database (main loop, once per tick)."""
+        s = self.db.sensors
+        st = s.sysStatus
+        sv = s.servo
+        fin = st.motionFin
+        status = status_byte(st.pwm, st.calib, st.deadlineError, st.motionFinAll, st.motionFinOne, fin)
+        self.payload[0] = pack_sensors1(
+            self.address, (sv[0].pos, sv[1].pos, sv[2].pos), (sv[0].vel, sv[1].vel, sv[2].vel), status
+        )
+        self.payload[1] = pack_sensors2(
+            self.address, (sv[0].current, sv[1].current, sv[2].current), s.special
+        )

@@ -1,0 +1,269 @@
+"""Module Slave: the main program of a Slave board (seed 000 section 3, fig. 6).
+
+``main`` = ``initPic`` (peripherals, CAN, databases, the PWM timer), then the calibration, then the
+20 ms loop. On the PIC the loop waits for each PWM period (``waitTick``); in the twin the timer is
+an event on the lockstep clock every ``hardware.PWM_PERIOD_US`` from ``phase_us``, and the
+calibration is a state machine run by the same tick (it counts ticks, as the manual's lists do).
+The CAN receive interrupt (``lowISR``, module CAN) runs whenever a frame ends on the wire.
+
+Tick order (docs/firmware.md, "Slave"), at the start of each PWM period:
+
+1. ``plant.advance_to(now)``; ``checkCan`` (bus-off recovery); deadline check;
+2. ``updateServoMeasures`` / ``finalizeServoMeasures`` (period that ended: positions, filtered;
+   velocities; currents), ``sampleExtraSensors`` (force), ``calcCoP`` on a leg board;
+3. a Calib request (control byte bit 6, 0 -> 1, latched by ``lowISR``) restarts ``calibration``;
+   while not calibrated, one step of ``calibration``;
+4. once calibrated: ``statusPWM`` from the actuation database, ``trajectory``, ``servoRequest``,
+   ``controller``, ``servoActuation`` (the pulses of the new period);
+5. the sensor database and status bits (motion finished, deadline), and the two sensor packets
+   that ``lowISR`` answers with until the next tick.
+"""
+
+from __future__ import annotations
+
+import time
+from typing import Any
+
+from humanoid_twin.clock import Clock
+from humanoid_twin.hardware import FOOT_OF_SCU, N_SCU, N_SERVOS, N_SPECIAL_SENSORS, PWM_PERIOD_US
+from humanoid_twin.slave.can import SlaveCan
+from humanoid_twin.slave.data import calcCoP
+from humanoid_twin.slave.database import Global
+from humanoid_twin.slave.pic2 import Pic2
+from humanoid_twin.slave.servo import LOCOMOTION_CONTROL, Calibration, ServoControl
+from humanoid_twin.slave.trajectory import Trajectory
+
+__all__ = ["LEG_SIGNS", "MOTION_FIN_TOL_DEG", "MOTION_FIN_STILL_TICKS", "Slave"]
+
+# Servo angle -> kinematic angle of the leg seen from the foot (docs/firmware.md, "DATA"):
+# (foot lateral, foot front, knee) of leg boards 1 and 2. A firmware constant per board, as the
+# PIC had it compiled in. The robot's joint axes are roll about +x forward, pitch about +y left
+# (docs/model.md); the leg seen from the foot turns the other way round the roll axis than the
+# foot seen from the leg, and the left roll servo is mounted mirrored (servo = -joint), hence
+# right (-1, 1, 1), left (1, 1, 1). tests/test_slave_board.py checks them against the model.
+LEG_SIGNS: dict[int, tuple[int, int, int]] = {1: (-1, 1, 1), 2: (1, 1, 1)}
+
+# Motion finished (status bits 0-2): the trajectory is done and the servo is within this many
+# degrees of its target, or has stopped (zero mean velocity) for this many ticks.
+MOTION_FIN_TOL_DEG = 1
+MOTION_FIN_STILL_TICKS = 2
+
+
+class Slave:
+    """One Slave board (PIC18F258): ``Slave(address, clock, plant, network, *, phase_us, seed=0)``.
+
+    ``address`` 1..8 (SCU, seed 002 slide 19); ``phase_us``: the start of its PWM periods
+    (the first tick is the first instant >= ``clock.now_us`` congruent to ``phase_us`` modulo
+    20 ms); ``seed``: kept for symmetry with the other boxes (the firmware has no randomness).
+    The public attributes are the manual's modules: ``db`` (GLOBAL: ``sensors``,
+    ``actuators``), ``traj`` (TRAJECTORY), ``servo`` (SERVO), ``calib`` (its calibration),
+    ``pic`` (PIC2), ``can`` (CAN).
+    """
+
+    def __init__(
+        self, address: int, clock: Clock, plant: Any, network: Any, *, phase_us: int, seed: int = 0
+    ) -> None:
+        if isinstance(address, bool) or not isinstance(address, int) or not 1 <= address <= N_SCU:
+            raise ValueError(f"Slave address must be an SCU address 1..{N_SCU}, got {address!r}")
+        if isinstance(phase_us, bool) or not isinstance(phase_us, int) or phase_us < 0:
+            raise ValueError(f"phase_us must be a non-negative int of microseconds, got {phase_us!r}")
+        self.address = address
+        self.clock = clock
+        self.plant = plant
+        self.network = network
+        self.phase_us = phase_us % PWM_PERIOD_US
+        self.seed = seed
+        self.has_foot = address in FOOT_OF_SCU
+        self.db = Global()
+        self.sensors = self.db.sensors
+        self.actuators = self.db.actuators
+        self.traj = Trajectory()
+        self.servo = ServoControl(self.actuators, self.has_foot, LEG_SIGNS.get(address, (1, 1, 1)))
+        self.calib = Calibration()
+        self.pic = Pic2(address, plant)
+        self.can = SlaveCan(address, clock, self.db, self.phase_us)
+        # CoP of the foot (mm, foot frame) and whether the foot is loaded (leg boards)
+        self.cop_x = 0
+        self.cop_y = 0
+        self.cop_loaded = False
+        # counters and timing
+        self.ticks = 0
+        self.deadline_violations = 0
+        self.task_ns_total = 0
+        self.task_ns_max = 0
+        self._due_us = 0
+        self._delay_us = 0
+        self._delay_ticks = 0
+        self._still = [0] * N_SERVOS
+        self._refs = [0] * N_SERVOS
+        self._periods = [0] * N_SERVOS
+        self._types = [0] * N_SERVOS
+        self.main()
+
+    # -- main -------------------------------------------------------------------------------------
+    def main(self) -> None:
+        """``main`` (fig. 6): ``initPic``, then the 20 ms loop (calibration first, inside it)."""
+        self.initPic()
+        now = self.clock.now_us
+        first = now + (self.phase_us - now) % PWM_PERIOD_US
+        self.clock.call_every(PWM_PERIOD_US, self._tick, first)
+
+    def initPic(self) -> None:
+        """``initPic`` (table 16): databases (``initGlobal``), trajectories, PWM off, filters
+        off, nominal position law, CAN (``initCan``)."""
+        self.db.initGlobal()
+        self.traj.initTrajectory()
+        self.servo.reset((0, 0, 0))
+        self.calib.reset()
+        self.pic.initPic()
+        self.can.initCan(self.network)
+        self.can.prepareSensorPackets()
+
+    # -- fault injection ----------------------------------------------------------------------------
+    def inject_deadline_violation(self, delay_us: int, ticks: int = 1) -> None:
+        """Fault injection: the work of the next ``ticks`` ticks starts ``delay_us`` late (as if
+        the previous pass of the loop overran), which sets the deadline-violation flag."""
+        if not 0 < delay_us < PWM_PERIOD_US:
+            raise ValueError(f"delay_us must be in 1..{PWM_PERIOD_US - 1}, got {delay_us!r}")
+        if ticks < 1:
+            raise ValueError(f"ticks must be >= 1, got {ticks!r}")
+        self._delay_us = delay_us
+        self._delay_ticks = ticks
+
+    # -- the loop -----------------------------------------------------------------------------------
+    @property
+    def calibrated(self) -> bool:
+        """Status bit 6: the calibration has completed."""
+        return self.calib.state == Calibration.DONE
+
+    @property
+    def commanded(self) -> list[int]:
+        """The positions the servos are driven to (PWM), whole degrees."""
+        return self.pic.applied
+
+    def _tick(self) -> None:
+        """The PWM period timer: ``waitTick`` returns."""
+        now = self.clock.now_us
+        self._due_us = now
+        if self._delay_ticks:
+            self._delay_ticks -= 1
+            self.clock.schedule(now + self._delay_us, self.loop)
+        else:
+            self.loop()
+
+    def loop(self) -> None:
+        """One pass of the main loop (fig. 6), at the start of a PWM period."""
+        t0 = time.perf_counter_ns()
+        now = self.clock.now_us
+        self.ticks += 1
+        late = now > self._due_us
+        if late:
+            self.deadline_violations += 1
+        self.plant.advance_to(now)
+        self.can.checkCan()
+        pic = self.pic
+        pic.updateServoMeasures()
+        pic.finalizeServoMeasures()
+        pic.sampleExtraSensors()
+        if self.has_foot:
+            self.cop_x, self.cop_y, self.cop_loaded = calcCoP(pic.force7)
+
+        act = self.actuators
+        st = self.sensors.sysStatus
+        calib = self.calib
+        if self.can.calib_request:
+            self.can.calib_request = False
+            if calib.state == Calibration.DONE:
+                calib.reset()
+        if calib.state != Calibration.DONE:
+            self._calibration_step()
+
+        traj = self.traj
+        servo = self.servo
+        types = self._types
+        if calib.state == Calibration.DONE:
+            pic.statusPWM(act.sysStatus.pwm)
+            refs = self._refs
+            periods = self._periods
+            for i in range(N_SERVOS):
+                a = act.servo[i]
+                refs[i] = a.ref
+                periods[i] = a.speed
+                types[i] = act.control[i].type
+            restarted = traj.trajectory(refs, periods, types, servo.output)
+            for i in range(N_SERVOS):
+                if restarted >> i & 1:
+                    servo.newTrajectory(i)
+                servo.servoRequest(i, traj.position[i])
+            servo.controller(pic.pos, self.cop_x, self.cop_y, self.cop_loaded, types)
+            pic.servoActuation(servo.output)
+
+        # sensor database (GLOBAL) and status bits
+        sv = self.sensors.servo
+        still = self._still
+        fin = st.motionFin
+        done = calib.state == Calibration.DONE
+        n_fin = 0
+        for i in range(N_SERVOS):
+            s = sv[i]
+            p = pic.pos[i]
+            v = pic.vel[i]
+            s.pos = p
+            s.vel = v
+            s.current = pic.current[i]
+            still[i] = still[i] + 1 if v == 0 else 0
+            f = False
+            if done and traj.done(i):
+                target = traj.traject[i].theta_final if types[i] == LOCOMOTION_CONTROL else servo.output[i]
+                d = p - target
+                f = -MOTION_FIN_TOL_DEG <= d <= MOTION_FIN_TOL_DEG or still[i] >= MOTION_FIN_STILL_TICKS
+            fin[i] = f
+            n_fin += f
+        sp = self.sensors.special
+        for k in range(N_SPECIAL_SENSORS):
+            sp[k] = pic.special[k]
+        st.motionFinAll = n_fin == N_SERVOS
+        st.motionFinOne = n_fin > 0
+        st.pwm = pic.pwm
+        st.filter = pic.filter_on
+        st.calib = done
+        st.deadlineError = late
+        self.can.prepareSensorPackets()
+        dt = time.perf_counter_ns() - t0
+        self.task_ns_total += dt
+        if dt > self.task_ns_max:
+            self.task_ns_max = dt
+
+    def _calibration_step(self) -> None:
+        """``calibration`` (table 8), one tick of it (see ``servo.Calibration``)."""
+        calib = self.calib
+        pic = self.pic
+        act = self.actuators
+        if calib.state == Calibration.WAIT:
+            if not act.sysStatus.pwm:
+                pic.statusPWM(False)          # servos limp until the first actuation with PWM on
+                return
+            calib.start([s.ref for s in act.servo])            # steps 1-2
+            pic.statusFilter(False)
+            pic.setCalibration(pic.b_q, (0,) * N_SPECIAL_SENSORS)   # force samples with zero offset
+            pic.servoActuation(calib.pos_master)
+            pic.statusPWM(True)
+            return
+        if not act.sysStatus.pwm:                               # PWM switched off meanwhile
+            calib.reset()
+            pic.statusPWM(False)
+            return
+        if calib.step(pic.adc, pic.force7):                     # steps 3-6
+            pic.setCalibration(calib.b_q, calib.offsets)
+            pic.statusFilter(True)                              # step 7
+            types = [c.type for c in act.control]
+            self.traj.initTrajectory(calib.pos_master, types)
+            self.servo.reset(calib.pos_master)
+            for i in range(N_SERVOS):
+                self.servo.types[i] = types[i]
+
+    def __repr__(self) -> str:
+        return (
+            f"Slave({self.address}, phase_us={self.phase_us}, calibrated={self.calibrated}, "
+            f"pwm={self.pic.pwm}, ticks={self.ticks})"
+        )
