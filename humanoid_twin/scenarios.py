@@ -83,14 +83,11 @@ class Monitor:
             self.fell = True
             self.fell_at_s = twin.now_s
         self.trunk_tilt_max_deg = max(self.trunk_tilt_max_deg, gt.trunk_tilt_deg)
-        margin = gt.cop_margin_mm
-        if margin is not None and math.isfinite(margin):
-            self.cop_margin_min_mm = min(self.cop_margin_min_mm, margin)
-        elif gt.cop_world is None:        # no contact at all: the robot is in the air or lying
-            self.cop_margin_min_mm = min(self.cop_margin_min_mm, -math.inf)
+        # -inf when nothing touches the platform (the robot is in the air or lying)
+        self.cop_margin_min_mm = min(self.cop_margin_min_mm, gt.cop_margin_mm)
         for scu, foot in FOOT_OF_SCU.items():
             slave = twin.slaves[scu]
-            truth = gt.cop_foot_mm.get(foot) if isinstance(gt.cop_foot_mm, dict) else None
+            truth = gt.foot_cop_mm.get(foot)
             if truth is None or not slave.cop_loaded or not slave.calibrated:
                 continue
             dx = slave.cop_x - truth[0]
