@@ -72,7 +72,8 @@ def main() -> None:
     if args.json:
         print(json.dumps(result))
     else:
-        print(f"simulated time          {args.seconds:.1f} s (flexao, 8 slaves, full CAN schedule, no recording)")
+        print(f"simulated time          {args.seconds:.1f} s "
+              "(flexao, 8 slaves, full CAN schedule, no recording)")
         print(f"MuJoCo alone            {phys:.3f} s wall   RTF {args.seconds / phys:7.1f}")
         print(f"whole twin              {twin:.3f} s wall   RTF {args.seconds / twin:7.1f}")
         print(f"overhead ratio          {twin / phys:.2f} x bare physics (target <= 3, aim 1.5)")
