@@ -347,8 +347,10 @@ def test_silenced_node_stops_transmitting_but_still_receives():
 
 # -- other interfaces, tools, logs ---------------------------------------------------------------
 def _exchange(interface: str) -> dict:
-    clock, net, nodes, rec = make_net(interface, n_slaves=2)
-    master = nodes["master"]
+    clock = Clock()
+    net = CanNetwork(clock, interface=interface)
+    rec = {k: Recorder(clock) for k in ("master", 1, 2)}
+    nodes = {"master": net.attach("master", master_filters(), rec["master"])}
 
     def slave_answer(a: int):
         def on_rx(msg: can.Message) -> None:
@@ -359,7 +361,8 @@ def _exchange(interface: str) -> dict:
         return on_rx
 
     for a in (1, 2):
-        nodes[a]._on_rx = slave_answer(a)
+        nodes[a] = net.attach(f"slave{a}", slave_filters(), slave_answer(a))
+    master = nodes["master"]
     for k, (a, idx) in enumerate([(1, 0), (1, 1), (2, 0), (2, 1)]):
         clock.schedule(250 * k, lambda a=a, idx=idx: master.send(std(act_id(a, idx), bytes([a, idx]) * 4)))
     clock.run_until(2000)

@@ -69,7 +69,7 @@ class CanController:
 
     __slots__ = (
         "name", "bus", "tec", "rec", "state", "silenced", "recovering",
-        "frames_sent", "frames_received", "tx_refused", "tx_aborted", "tx_errors", "rx_errors",
+        "frames_sent", "tx_refused", "tx_aborted", "tx_errors", "rx_errors",
         "bus_off_count", "recoveries",
         "_net", "_on_rx", "_tx_buffers", "_n_pending", "_off", "_suspend_until",
         "_rec_count", "_rec_mark", "_filt", "_external",
@@ -77,6 +77,8 @@ class CanController:
 
     def __init__(self, network: CanNetwork, name: str, on_rx: Callable[[can.Message], None] | None,
                  tx_buffers: int = PIC_TX_BUFFERS, external: bool = False) -> None:
+        if on_rx is None:
+            on_rx = _ignore
         self.name = name
         self.bus: can.BusABC = None  # type: ignore[assignment]  # set by the network
         self.tec = 0
@@ -85,7 +87,6 @@ class CanController:
         self.silenced = False
         self.recovering = False
         self.frames_sent = 0
-        self.frames_received = 0
         self.tx_refused = 0
         self.tx_aborted = 0
         self.tx_errors = 0
@@ -141,14 +142,11 @@ class CanController:
         """0 error-active, 1 error-passive, 2 bus-off (the ERRSTATE byte of SPEC.md section 2)."""
         return ERROR_STATE_CODE[self.state]
 
-    # -- receive interrupt (the bus's rx_callback) ------------------------------------------
+    # -- receive interrupt ---------------------------------------------------------------------
     def _on_frame(self, msg: can.Message) -> None:
-        if self._off:
-            return
-        self.frames_received += 1
-        cb = self._on_rx
-        if cb is not None:
-            cb(msg)
+        """Used when draining another python-can interface (the twin bus calls on_rx directly)."""
+        if not self._off:
+            self._on_rx(msg)
 
 
 def _filter_tuple(can_filters: list[dict] | None) -> tuple[tuple[int, int], ...] | None:
@@ -189,6 +187,8 @@ class CanNetwork:
         self.interface = interface
         self.channel = channel
         self.bitrate = bitrate
+        # integer microseconds per bit when the bitrate allows (1 us at 1 Mbit/s), else 0
+        self._bit_us = 1_000_000 // bitrate if 1_000_000 % bitrate == 0 else 0
         self._twin = interface == TWIN_INTERFACE
         self._medium = None
         if self._twin:
@@ -245,7 +245,8 @@ class CanNetwork:
         ctrl = CanController(self, name, on_rx)
         ctrl._filt = _filter_tuple(can_filters)
         if self._twin:
-            bus = TwinBus(self.channel, can_filters=can_filters, rx_callback=ctrl._on_frame)
+            # the RX interrupt is called straight from the bus; a bus-off node is muted instead
+            bus = TwinBus(self.channel, can_filters=can_filters, rx_callback=ctrl._on_rx)
             bus._network_node = True
         else:
             kwargs: dict = {}
@@ -360,6 +361,8 @@ class CanNetwork:
     # -- timing helpers ----------------------------------------------------------------------
     def _dur(self, bits: int) -> int:
         """Duration of ``bits`` bit times in integer microseconds (rounded up)."""
+        if self._bit_us:
+            return bits * self._bit_us
         br = self.bitrate
         return (bits * 1_000_000 + br - 1) // br
 
@@ -453,6 +456,11 @@ class CanNetwork:
             end = start + self._dur(bits + ERROR_EXTRA_BITS)
             self._dom_end = end - self._dur(TRAILING_RECESSIVE_BITS)
             self.clock.schedule(start + self._dur(bits - 10 + ERROR_FLAG_BITS), self._error_cb)
+        elif self._bit_us:
+            bu = self._bit_us
+            end = start + bits * bu
+            self._dom_end = end - TRAILING_RECESSIVE_BITS * bu
+            self.clock.schedule(end - 3 * bu, self._complete_cb)
         else:
             end = start + self._dur(bits)
             self._dom_end = end - self._dur(TRAILING_RECESSIVE_BITS)
@@ -587,6 +595,7 @@ class CanNetwork:
             c.tec = BUS_OFF_LIMIT      # the PIC's TXERRCNT is an 8-bit register
             c.state = BUS_OFF
             c._off = True
+            self._mute(c, True)
             c.bus_off_count += 1
             # the TX buffers are cleared: pending requests are dropped
             if c._n_pending:
@@ -648,14 +657,25 @@ class CanNetwork:
 
         self.clock.schedule(t, check)
 
+    def _mute(self, c: CanController, muted: bool) -> None:
+        bus = c.bus
+        if isinstance(bus, TwinBus):
+            bus._muted = muted
+            bus._medium.invalidate()
+
     def _recovered(self, c: CanController) -> None:
         c.recovering = False
         c._off = False
+        self._mute(c, False)
         c.tec = 0
         c.rec = 0
         c.state = ERROR_ACTIVE
         c.recoveries += 1
         self._recovering.remove(c)
+
+
+def _ignore(msg: can.Message) -> None:
+    """on_rx of a node that does not listen."""
 
 
 def _accepts(filt: tuple[tuple[int, int], ...] | None, arbitration_id: int) -> bool:

@@ -56,7 +56,8 @@ class _Medium:
         key = (arbitration_id, is_extended)
         r = self._routes.get(key)
         if r is None:
-            r = tuple(b for b in self.members if b._accepts(arbitration_id, is_extended))
+            r = tuple(b for b in self.members
+                      if not b._muted and b._accepts(arbitration_id, is_extended))
             self._routes[key] = r
         return r
 
@@ -140,6 +141,7 @@ class TwinBus(BusABC):
         self._waiting = 0
         self._filt: tuple[tuple[int, int, bool | None], ...] | None = None
         self._network_node = False  # set by CanNetwork for its own nodes
+        self._muted = False         # a bus-off node: receives nothing (set by CanNetwork)
         self._medium = _join(self, channel)
         try:
             super().__init__(channel=channel, can_filters=can_filters, **kwargs)
@@ -205,7 +207,11 @@ class TwinBus(BusABC):
 
     def _deliver(self, msg: can.Message) -> None:
         """Hand ``msg`` (already on the wire) to every accepting member of the channel."""
-        for bus in self._medium.route(msg.arbitration_id, msg.is_extended_id):
+        medium = self._medium
+        route = medium._routes.get((msg.arbitration_id, msg.is_extended_id))
+        if route is None:
+            route = medium.route(msg.arbitration_id, msg.is_extended_id)
+        for bus in route:
             if bus is self and not self.receive_own_messages:
                 continue
             cb = bus.rx_callback
