@@ -153,13 +153,13 @@ class Slave:
 
     def loop(self) -> None:
         """One pass of the main loop (fig. 6), at the start of a PWM period."""
-        t0 = time.perf_counter_ns()
         now = self.clock.now_us
+        self.plant.advance_to(now)            # the physics up to now: not the board's task time
+        t0 = time.perf_counter_ns()
         self.ticks += 1
         late = now > self._due_us
         if late:
             self.deadline_violations += 1
-        self.plant.advance_to(now)
         self.can.checkCan()
         pic = self.pic
         pic.updateServoMeasures()
