@@ -1,0 +1,240 @@
+"""Motion planners of the legs (seed 000 table 22, fig. 21): ``flexao``, ``inclinar``,
+``levantar_perna``.
+
+Each returns ``(pos_apply, k, t)`` with the shapes of table 23:
+
+- ``pos_apply``: ``(N_SCU, N_SERVOS, N_MOTIONS)`` = ``(8, 3, M)``, the final position of every
+  servo at the end of each motion, as *leg angles* in degrees (joint frame of the MuJoCo model,
+  0 = vertical posture; ``exe_traj`` turns them into servo angles with ``adaptate``, ``correct``,
+  ``limit``).
+- ``k``: ``(8, 3, M, 4)``, per servo and motion ``[KI, KP, KD, control type]`` (bytes; gains in
+  the Slave's fixed point, docs/firmware.md; control type of seed 000 table 9).
+- ``t``: ``(M,)``, the duration of each motion in seconds (the movement period, sent in 20 ms
+  ticks).
+
+Joint signs (models/humanoid.xml, docs/model.md): every axis follows the world at the stand pose,
+x forward, y left, z up, the same for both legs. Pitch about +y: positive hip pitch swings the
+leg backward, positive knee flexes the knee, positive ankle pitch turns the toes down. Roll
+about +x: positive hip roll swings the leg to the robot's right (over a planted foot: the trunk
+moves left), positive ankle roll raises the foot's left edge (over a planted foot: the shank
+leans left). Only SCUs 1-4 (legs and hips) move; boards 5-8 stay
+at 0 with NO_CONTROL (``exe_traj`` drives the leg SCUs by default).
+
+The gains are kept in one place, :data:`GAINS` (the balance numbers are tuned in
+docs/balance.md when that work lands).
+"""
+
+from __future__ import annotations
+
+import math
+import operator
+from typing import Any
+
+import numpy as np
+
+from humanoid_twin.hardware import N_SCU, N_SERVOS, PWM_PERIOD_US
+from humanoid_twin.protocol.rs232 import ControlType
+
+__all__ = [
+    "GAINS",
+    "LEG_SCUS",
+    "SHIFT_DEG",
+    "R_LEG",
+    "L_LEG",
+    "R_HIP",
+    "L_HIP",
+    "ANKLE_ROLL",
+    "ANKLE_PITCH",
+    "KNEE",
+    "HIP_ROLL",
+    "HIP_PITCH",
+    "HIP_YAW",
+    "MAX_PERIOD_S",
+    "flexao",
+    "inclinar",
+    "levantar_perna",
+    "empty_plan",
+    "leg_pose",
+]
+
+# Rows of pos_apply / k (SCU - 1) and columns (servo index) of the leg and hip boards
+# (hardware.SERVO_JOINTS).
+R_LEG, L_LEG, R_HIP, L_HIP = 0, 1, 2, 3
+ANKLE_ROLL, ANKLE_PITCH, KNEE = 0, 1, 2
+HIP_ROLL, HIP_PITCH, HIP_YAW = 0, 1, 2
+LEG_SCUS: tuple[int, ...] = (1, 2, 3, 4)
+
+TICK_S = PWM_PERIOD_US / 1e6
+MAX_PERIOD_S = 255 * TICK_S          # the movement period travels as one byte of 20 ms ticks
+
+# Gains per control type: rows servo 1..3, columns (KI, KP, KD), raw bytes of the CAN packets.
+# LOCOMOTION (incremental PID, Q4.4 bytes = gain * 16, docs/firmware.md): KI 0.5, KP 0.5, KD 0:
+# the outer loop removes the servo's load sag in a few ticks and lags a 1 s ramp by ~2 deg.
+# BALANCE (Jacobian-transpose CoP law, only KP is used: v = (KP * J^T e) >> 16 in 1/256 deg/tick):
+# KP 4 on foot lateral, foot front and knee = ~11 deg/s at a 10 mm CoP error, well under the
+# firmware's 50 deg/s limiter. REACTION (proportional CoP law, KP/256 deg/tick per mm): KP 8.
+GAINS: dict[ControlType, tuple[tuple[int, int, int], ...]] = {
+    ControlType.NO_CONTROL: ((0, 0, 0),) * 3,
+    ControlType.LOCOMOTION_CONTROL: ((8, 8, 0),) * 3,
+    ControlType.REACTION_CONTROL: ((0, 8, 0), (0, 8, 0), (8, 8, 0)),
+    ControlType.BALANCE_CONTROL: ((0, 4, 0),) * 3,
+}
+
+# levantar_perna: lateral lean (ankle roll, hip roll opposite) that puts the mass centre over the
+# support foot before the other foot leaves the floor. Hips 110 mm apart, 190 mm from hip roll to
+# ankle roll: asin(55/190) = 16.8 deg would bring the trunk over the support ankle; the legs and
+# the raised leg stay behind, 14 deg puts the whole robot's mass centre well inside the support
+# foot's pads (+-33 mm wide), checked in tests/test_host_drivers.py with the real plant.
+SHIFT_DEG = 14.0
+
+
+def _period(T: Any) -> float:
+    try:
+        v = float(T)
+    except (TypeError, ValueError):
+        raise ValueError(f"T must be a duration in seconds, got {T!r}") from None
+    if not math.isfinite(v) or v <= 0:
+        raise ValueError(f"T must be a positive duration in seconds, got {T!r}")
+    if round(v / TICK_S) > 255:
+        raise ValueError(f"T = {v} s is longer than {MAX_PERIOD_S:.2f} s (255 ticks of 20 ms, one byte)")
+    return v
+
+
+def _angle(name: str, value: Any, lo: float, hi: float, why: str) -> float:
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be an angle in degrees, got {value!r}") from None
+    if not math.isfinite(v) or not lo <= v <= hi:
+        raise ValueError(f"{name} must be {lo:g}..{hi:g} degrees ({why}), got {value!r}")
+    return v
+
+
+def empty_plan(n_motions: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``pos_apply`` zeros ``(8, 3, M)``, ``k`` with NO_CONTROL and zero gains ``(8, 3, M, 4)``,
+    ``t`` zeros ``(M,)``."""
+    m = operator.index(n_motions)
+    if m < 1:
+        raise ValueError(f"a plan needs at least one motion, got {m}")
+    return np.zeros((N_SCU, N_SERVOS, m)), np.zeros((N_SCU, N_SERVOS, m, 4)), np.zeros(m)
+
+
+def _set_k(k: np.ndarray, row: int, m: int, ctype: ControlType) -> None:
+    k[row, :, m, :3] = GAINS[ctype]
+    k[row, :, m, 3] = int(ctype)
+
+
+def leg_pose(
+    pos: np.ndarray,
+    m: int,
+    side: int,
+    *,
+    hip_roll: float = 0.0,
+    hip_pitch: float = 0.0,
+    knee: float = 0.0,
+    ankle_pitch: float = 0.0,
+    ankle_roll: float = 0.0,
+) -> None:
+    """Write one leg's joint angles (degrees) into ``pos[:, :, m]``; ``side`` 0 right, 1 left."""
+    leg, hip = (R_LEG, R_HIP) if side == 0 else (L_LEG, L_HIP)
+    pos[leg, ANKLE_ROLL, m] = ankle_roll
+    pos[leg, ANKLE_PITCH, m] = ankle_pitch
+    pos[leg, KNEE, m] = knee
+    pos[hip, HIP_ROLL, m] = hip_roll
+    pos[hip, HIP_PITCH, m] = hip_pitch
+    pos[hip, HIP_YAW, m] = 0.0
+
+
+def flexao(T: float, motion: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``[pos_apply, k, t] = flexao(T, motion)`` (table 22): both legs bend, in one motion of ``T`` s.
+
+    ``motion`` = the ankle's bend (degrees, 0..45). Both legs: ankle pitch ``-motion`` (the shank
+    leans forward over the flat foot), knee ``+2 motion``, hip pitch ``-motion`` (the thigh leans
+    back by the same angle): the feet stay flat, the trunk upright, and the hips stay straight
+    above the ankles (equal link lengths, table 13), so the mass centre does not move fore-aft.
+    LOCOMOTION_CONTROL on the legs and hips.
+    """
+    T = _period(T)
+    a = _angle("motion", motion, 0.0, 45.0, "the knee bends 2 x motion, up to 90")
+    pos, k, t = empty_plan(1)
+    for side in (0, 1):
+        leg_pose(pos, 0, side, hip_pitch=-a, knee=2 * a, ankle_pitch=-a)
+    for row in (R_LEG, L_LEG, R_HIP, L_HIP):
+        _set_k(k, row, 0, ControlType.LOCOMOTION_CONTROL)
+    t[0] = T
+    return pos, k, t
+
+
+def inclinar(T: float, motion: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``[pos_apply, k, t] = inclinar(T, motion)`` (table 22): both legs lean sideways, one motion.
+
+    ``motion`` = the foot lateral joint's angle (degrees, -30..30): ankle roll ``+motion`` and hip
+    roll ``-motion`` on both legs, so the legs stay parallel, the feet flat and the trunk upright
+    while the hips move sideways by 190 mm x sin(motion). Positive: the robot leans to its left.
+    LOCOMOTION_CONTROL on the legs and hips.
+    """
+    T = _period(T)
+    a = _angle("motion", motion, -30.0, 30.0, "the roll joints' structure limit")
+    pos, k, t = empty_plan(1)
+    for side in (0, 1):
+        leg_pose(pos, 0, side, hip_roll=-a, ankle_roll=a)
+    for row in (R_LEG, L_LEG, R_HIP, L_HIP):
+        _set_k(k, row, 0, ControlType.LOCOMOTION_CONTROL)
+    t[0] = T
+    return pos, k, t
+
+
+def levantar_perna(
+    T: float, motion: float, perna: Any, *, shift: float = SHIFT_DEG
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``[pos_apply, k, t] = levantar_perna(T, motion, perna)`` (table 22): lift a leg until its
+    knee is at ``motion`` degrees (0..90). ``perna`` 1 = right leg, 2 = left leg, any other value =
+    both legs (the manual's rule).
+
+    One leg, 5 motions of ``T`` seconds each:
+
+    1. shift: both legs lean ``shift`` degrees toward the support leg (as ``inclinar``: ankle
+       roll ``+-shift``, hip roll opposite), putting the mass centre over the support foot;
+    2. lift: the raised leg flexes: hip pitch ``-motion/2``, knee ``motion``, ankle pitch
+       ``-motion/2`` (foot parallel to the floor, straight under the hip, raised by
+       ``2 x 95 mm x (1 - cos(motion/2))``);
+    3. hold: the same pose for another ``T``;
+    4. lower: back to the shift pose;
+    5. return: vertical posture.
+
+    Control: LOCOMOTION_CONTROL everywhere, except the support leg's board (foot lateral, foot
+    front, knee), which runs BALANCE_CONTROL during lift, hold and lower.
+
+    Both legs: 3 motions (both legs flex as in step 2, hold, return), LOCOMOTION_CONTROL.
+    """
+    T = _period(T)
+    a = _angle("motion", motion, 0.0, 90.0, "the knee's range")
+    s = _angle("shift", shift, 0.0, 30.0, "the roll joints' structure limit")
+    flex = {"hip_pitch": -a / 2, "knee": a, "ankle_pitch": -a / 2}
+    legs = (R_LEG, L_LEG, R_HIP, L_HIP)
+    if perna in (1, 2) and not isinstance(perna, bool):
+        lifted = 0 if perna == 1 else 1          # side index: 0 right, 1 left
+        support_row = L_LEG if lifted == 0 else R_LEG
+        lean = s if lifted == 0 else -s          # + = trunk to the left, over the left foot
+        pos, k, t = empty_plan(5)
+        for side in (0, 1):
+            for m in (0, 1, 2, 3):
+                extra = flex if (side == lifted and m in (1, 2)) else {}
+                leg_pose(pos, m, side, hip_roll=-lean, ankle_roll=lean, **extra)
+        for m in range(5):
+            for row in legs:
+                ctype = ControlType.LOCOMOTION_CONTROL
+                if row == support_row and m in (1, 2, 3):
+                    ctype = ControlType.BALANCE_CONTROL
+                _set_k(k, row, m, ctype)
+        t[:] = T
+        return pos, k, t
+    pos, k, t = empty_plan(3)
+    for side in (0, 1):
+        for m in (0, 1):
+            leg_pose(pos, m, side, **flex)
+    for m in range(3):
+        for row in legs:
+            _set_k(k, row, m, ControlType.LOCOMOTION_CONTROL)
+    t[:] = T
+    return pos, k, t
