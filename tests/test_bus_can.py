@@ -255,12 +255,23 @@ def test_invalid_frames_are_refused_with_a_clear_error():
 def test_error_states_bus_off_and_recovery():
     clock, net, nodes, rec = make_net(n_slaves=2)
     m, s1, s2 = nodes["master"], nodes[1], nodes[2]
+    errors = can.BufferedReader()
+    net.add_listener(errors)
     net.set_faults(corrupt_prob=1.0, seed=1)      # every frame is destroyed by an error frame
     m.send(std(act_id(1, 0)))
     states = []
     for _ in range(40):
         clock.run_for(200)                         # ~one retransmission per 130 us
         states.append((m.tec, m.state))
+    t_err = []
+    while (e := errors.get_message(0)) is not None:
+        assert e.is_error_frame
+        t_err.append(round(e.timestamp * 1e6))
+    # an error frame takes frame_bits + 7 bits; error-passive (from the 16th error) adds the
+    # 8-bit suspend transmission before each retransmission
+    bits = frame_bits(act_id(1, 0), bytes(8))
+    gaps = [b - a for a, b in zip(t_err, t_err[1:], strict=False)]
+    assert gaps == [bits + 7] * 15 + [bits + 7 + 8] * 16
     # TEC +8 per error: passive past 127 (16 errors), bus-off past 255 (32 errors)
     assert (128, ERROR_PASSIVE) in states and (120, ERROR_ACTIVE) in states
     assert m.state == BUS_OFF and m.tx_errors == 32 and net.error_frames == 32
