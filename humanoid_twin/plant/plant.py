@@ -371,6 +371,17 @@ class Plant:
         qadr, _, _, sign, _, _ = self._servo[scu][i]
         return sign * float(self.data.qpos[qadr]) * _DEG_PER_RAD
 
+    def set_external_torque(self, joint: str, torque_nm: float) -> None:
+        """Apply a constant external torque (N.m, about the joint axis) to ``joint``: a load on
+        its servo for bench experiments and fault injection. 0 removes it."""
+        j = mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_JOINT, joint) if isinstance(joint, str) else -1
+        if j < 0 or self.model.jnt_type[j] != mujoco.mjtJoint.mjJNT_HINGE:
+            raise PlantInputError(f"no servo joint named {joint!r}")
+        torque = float(torque_nm)
+        if not math.isfinite(torque):
+            raise PlantInputError(f"external torque must be finite, got {torque_nm!r}")
+        self.data.qfrc_applied[self.model.jnt_dofadr[j]] = torque
+
     def servo_powered(self, scu: int, i: int) -> bool:
         """Whether servo ``i`` of ``scu`` currently receives PWM."""
         _check_scu(scu)
