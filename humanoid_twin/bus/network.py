@@ -31,7 +31,7 @@ from collections.abc import Callable
 
 import can
 
-from humanoid_twin.bus.frames import TRAILING_RECESSIVE_BITS, frame_bits
+from humanoid_twin.bus.frames import TRAILING_RECESSIVE_BITS, _frame_bits_cached
 from humanoid_twin.bus.twin_bus import TwinBus, get_medium, release_medium
 from humanoid_twin.clock import Clock
 
@@ -203,10 +203,11 @@ class CanNetwork:
         self._listeners: list[can.Listener] = []
         self._recovering: list[CanController] = []
         # wire state
-        self._pending: list[tuple[int, int, int, CanController, can.Message, int]] = []
+        # (ID << 40 | request seq, request time, controller, message, frame bits)
+        self._pending: list[tuple[int, int, CanController, can.Message, int]] = []
         self._busy = False          # a decision is scheduled or a frame/error frame is on the wire
         self._start = 0             # start (SOF) of the frame being decided / on the wire
-        self._current: tuple[int, int, int, CanController, can.Message, int] | None = None
+        self._current: tuple[int, int, CanController, can.Message, int] | None = None
         self._current_aborted = False
         self._outcome = _OK
         self._idle_from = 0         # the wire is idle from this instant (end of last IFS)
@@ -383,9 +384,10 @@ class CanNetwork:
         if n > 8 or msg.dlc != n:
             raise CanError(f"{ctrl.name}: a frame carries 0..8 data bytes with dlc == len(data), "
                            f"got dlc={msg.dlc}, {n} bytes")
-        bits = frame_bits(arb, data)
-        self._seq += 1
-        self._pending.append((arb, self._seq, self.clock.now_us, ctrl, msg, bits))
+        bits = _frame_bits_cached(arb, bytes(data))
+        self._seq = seq = self._seq + 1
+        # arbitration key: the ID, then request order (ties never happen in the protocol)
+        self._pending.append(((arb << 40) | seq, self.clock.now_us, ctrl, msg, bits))
         ctrl._n_pending += 1
         if not self._busy:
             self._kick()
@@ -415,21 +417,21 @@ class CanNetwork:
         start = self._start
         best = None
         for e in self._pending:
-            if e[2] > start:
+            if e[1] > start:
                 continue
-            c = e[3]
+            c = e[2]
             if c.silenced or c._suspend_until > start:
                 continue
-            if best is None or e[0] < best[0] or (e[0] == best[0] and e[1] < best[1]):
+            if best is None or e[0] < best[0]:
                 best = e
         if best is None:
             self._busy = False
             nxt = None
             for e in self._pending:
-                c = e[3]
+                c = e[2]
                 if c.silenced:
                     continue
-                t = e[2] if e[2] > c._suspend_until else c._suspend_until
+                t = e[1] if e[1] > c._suspend_until else c._suspend_until
                 if nxt is None or t < nxt:
                     nxt = t
             if nxt is not None:
@@ -443,7 +445,7 @@ class CanNetwork:
         self._pending.remove(best)
         self._current = best
         self._current_aborted = False
-        bits = best[5]
+        bits = best[4]
         outcome = _OK
         if self._faults_on:
             r = self._rng.random()
@@ -469,7 +471,7 @@ class CanNetwork:
 
     def _complete(self) -> None:
         """End of EOF: the frame is valid; deliver it to the receivers and listeners."""
-        arb, _seq, _req, ctrl, msg, bits = self._current  # type: ignore[misc]
+        _key, _req, ctrl, msg, bits = self._current  # type: ignore[misc]
         self._current = None
         t = self.clock.now_us
         msg.timestamp = t / 1_000_000
@@ -493,7 +495,8 @@ class CanNetwork:
         else:
             self._send_and_drain(ctrl, msg, t)
         if self._listeners:
-            copy = can.Message(timestamp=msg.timestamp, arbitration_id=arb, is_extended_id=False,
+            copy = can.Message(timestamp=msg.timestamp, arbitration_id=msg.arbitration_id,
+                               is_extended_id=False,
                                channel=self.channel, dlc=msg.dlc, data=bytes(msg.data), is_rx=True)
             for lst in self._listeners:
                 lst.on_message_received(copy)
@@ -528,7 +531,7 @@ class CanNetwork:
         e = self._current
         assert e is not None
         self._current = None
-        ctrl = e[3]
+        ctrl = e[2]
         self.error_frames += 1
         ctrl.tx_errors += 1
         ctrl.tec += 8
@@ -563,14 +566,14 @@ class CanNetwork:
         n = 0
         pending = self._pending
         if ctrl._n_pending:
-            keep = [e for e in pending if e[3] is not ctrl]
+            keep = [e for e in pending if e[2] is not ctrl]
             n = len(pending) - len(keep)
             if n:
                 pending[:] = keep
                 ctrl._n_pending -= n
                 ctrl.tx_aborted += n
         cur = self._current
-        if cur is not None and cur[3] is ctrl:
+        if cur is not None and cur[2] is ctrl:
             self._current_aborted = True
         return n
 
@@ -599,7 +602,7 @@ class CanNetwork:
             c.bus_off_count += 1
             # the TX buffers are cleared: pending requests are dropped
             if c._n_pending:
-                keep = [e for e in self._pending if e[3] is not c]
+                keep = [e for e in self._pending if e[2] is not c]
                 dropped = len(self._pending) - len(keep)
                 self._pending[:] = keep
                 c.tx_aborted += dropped
