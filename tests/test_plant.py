@@ -379,6 +379,16 @@ def test_ground_truth_and_drawing_helpers(standing) -> None:
     assert tr.cop_margin_mm == pytest.approx(62.0, abs=1.0)
     pads = sum(tr.pad_forces_n["r_foot"]) + sum(tr.pad_forces_n["l_foot"])
     assert pads == pytest.approx(WEIGHT_N, rel=1e-3)
+    # the pad forces are the normal components of mj_contactForce over the pad contacts
+    m, d = p.model, p.data
+    f6, ref = np.zeros(6), {"r_foot": np.zeros(4), "l_foot": np.zeros(4)}
+    for c in range(d.ncon):
+        name = m.geom(d.contact.geom[c][0]).name or m.geom(d.contact.geom[c][1]).name
+        mujoco.mj_contactForce(m, d, c, f6)
+        foot, suffix = name[:6], name[-2:]
+        ref[foot][("fl", "fr", "rl", "rr").index(suffix)] += f6[0]
+    for foot in ref:
+        assert tr.pad_forces_n[foot] == pytest.approx(ref[foot], rel=1e-9)
     names, pos, quat = p.body_poses()
     assert len(names) == len(pos) == len(quat) == p.model.nbody - 1 and "r_foot" in names
     assert quat[names.index("trunk")] == pytest.approx([0, 0, 0, 1], abs=1e-3)     # xyzw

@@ -173,9 +173,14 @@ class Plant:
         self._foot_touch_of_scu = {scu: self._touch_adr[foot] for scu, foot in hardware.FOOT_OF_SCU.items()}
         hinges = [j for j in range(m.njnt) if m.jnt_type[j] == mujoco.mjtJoint.mjJNT_HINGE]
         self._joint_names = [m.joint(j).name for j in hinges]
-        self._joint_qadr = [int(m.jnt_qposadr[j]) for j in hinges]
+        self._joint_qadr = np.array([m.jnt_qposadr[j] for j in hinges], dtype=np.int64)
         self._body_names = tuple(m.body(b).name for b in range(1, m.nbody))
         self._force6 = np.zeros(6)
+        # pad index 0..7 (foot * 4 + table-12 index) of every geom, -1 for the other geoms
+        self._pad_id = np.full(m.ngeom, -1, dtype=np.int64)
+        for g, (f, k) in self._pad_of_geom.items():
+            self._pad_id[g] = 4 * f + k
+        self._pyramidal = m.opt.cone == mujoco.mjtCone.mjCONE_PYRAMIDAL
 
         # the hardware: potentiometer offsets, drawn once per plant (what calibration estimates)
         ss = np.random.SeedSequence(self.seed)
@@ -402,43 +407,48 @@ class Plant:
 
     # --- ground truth ------------------------------------------------------------------------------
     def truth(self) -> GroundTruth:
-        """Ground truth of the current state (contact CoP from ``mj_contactForce``)."""
-        m, d = self.model, self.data
+        """Ground truth of the current state.
+
+        Pad forces and CoPs come from the MuJoCo contact forces of the pad/ground contacts (their
+        normal component, as ``mj_contactForce`` gives it), not from the touch sensors.
+        """
+        d = self.data
         trunk_z = d.xmat[self._trunk].reshape(3, 3)[:, 2]
         tilt = math.degrees(math.acos(max(-1.0, min(1.0, float(trunk_z[2])))))
         height = float(d.xpos[self._trunk, 2])
 
-        pad_f = np.zeros((2, 4))
+        pad_f = np.zeros(8)
         foot_sum = np.zeros((2, 2))       # sum of F * (x, y) in each foot frame, mm
         world_sum = np.zeros(2)
-        contact_pts: list[tuple[float, float]] = []
-        frames = [(d.site_xpos[self._sole_site[f]], d.site_xmat[self._sole_site[f]].reshape(3, 3))
-                  for f in FOOT_BODIES]
-        f6 = self._force6
-        pad_of = self._pad_of_geom
-        for c in range(d.ncon):
-            g1, g2 = d.contact.geom[c]
-            hit = pad_of.get(int(g1)) or pad_of.get(int(g2))
-            if hit is None:
-                continue
-            mujoco.mj_contactForce(m, d, c, f6)
-            fn = float(f6[0])
-            if fn <= 0.0:
-                continue
-            foot, pad = hit
-            pos = d.contact.pos[c]
-            origin, rot = frames[foot]
-            local = (pos - origin) @ rot * 1000.0
-            pad_f[foot, pad] += fn
-            foot_sum[foot] += fn * local[:2]
-            world_sum += fn * pos[:2]
-            contact_pts.append((float(pos[0]), float(pos[1])))
-
+        contact_pts = np.zeros((0, 2))
+        n = d.ncon
+        if n:
+            con = d.contact
+            geom = con.geom[:n]
+            pid = np.maximum(self._pad_id[geom[:, 0]], self._pad_id[geom[:, 1]])
+            adr = con.efc_address[:n]
+            sel = np.flatnonzero((pid >= 0) & (adr >= 0))
+            if sel.size:
+                fn = self._normal_forces(sel, adr, con.dim[:n])
+                loaded = fn > 0.0
+                sel, fn = sel[loaded], fn[loaded]
+                pid = pid[sel]
+                pos = con.pos[:n][sel]
+                np.add.at(pad_f, pid, fn)
+                for f, foot in enumerate(FOOT_BODIES):
+                    on = pid // 4 == f
+                    if on.any():
+                        s = self._sole_site[foot]
+                        local = (pos[on] - d.site_xpos[s]) @ d.site_xmat[s].reshape(3, 3)
+                        foot_sum[f] = fn[on] @ local[:, :2] * 1000.0
+                world_sum = fn @ pos[:, :2]
+                contact_pts = pos[:, :2]
+        pad_f = pad_f.reshape(2, 4)
         foot_tot = pad_f.sum(axis=1)
         total = float(foot_tot.sum())
         foot_cop = {foot: (foot_sum[f] / foot_tot[f] if foot_tot[f] > C.LOADED_MIN_N else None)
                     for f, foot in enumerate(FOOT_BODIES)}
-        hull = convex_hull(contact_pts)
+        hull = convex_hull(contact_pts.tolist())
         if total > C.LOADED_MIN_N:
             cop = world_sum / total
             margin = signed_distance(cop, hull) * 1000.0
@@ -450,9 +460,9 @@ class Plant:
             com=d.subtree_com[self._trunk].copy(),
             trunk_tilt_deg=tilt,
             trunk_height_m=height,
-            joint_angles_deg={n: math.degrees(float(d.qpos[a]))
-                              for n, a in zip(self._joint_names, self._joint_qadr, strict=True)},
-            pad_forces_n={foot: pad_f[f].copy() for f, foot in enumerate(FOOT_BODIES)},
+            joint_angles_deg=dict(zip(self._joint_names,
+                                      (d.qpos[self._joint_qadr] * _DEG_PER_RAD).tolist(), strict=True)),
+            pad_forces_n={foot: pad_f[f] for f, foot in enumerate(FOOT_BODIES)},
             foot_cop_mm=foot_cop,
             cop_world_xy=cop,
             support_polygon_xy=np.array(hull, dtype=float).reshape(-1, 2),
@@ -460,6 +470,18 @@ class Plant:
             total_normal_force_n=total,
             fell=tilt > C.FELL_TILT_DEG or height < C.FELL_HEIGHT_M,
         )
+
+    def _normal_forces(self, sel: np.ndarray, adr: np.ndarray, dim: np.ndarray) -> np.ndarray:
+        """Normal force of the contacts ``sel``: with pyramidal cones the sum of the pyramid's
+        edge forces (what ``mj_contactForce`` returns as its normal component)."""
+        d = self.data
+        if self._pyramidal and bool((dim[sel] == 3).all()):
+            return d.efc_force[adr[sel, None] + _FACETS_CONDIM3].sum(axis=1)
+        out = np.empty(sel.size)
+        for k, c in enumerate(sel.tolist()):
+            mujoco.mj_contactForce(self.model, d, c, self._force6)
+            out[k] = self._force6[0]
+        return out
 
     def body_poses(self) -> tuple[tuple[str, ...], np.ndarray, np.ndarray]:
         """Names, world positions (n, 3) and quaternions (n, 4, xyzw) of every body but the world."""
@@ -516,5 +538,6 @@ class Plant:
 _RAD_PER_US = math.radians(1.0) / hardware.PULSE_US_PER_DEG
 _DEG_PER_RAD = 180.0 / math.pi
 _COUNTS_PER_N = 1.0 / hardware.FORCE_N_PER_COUNT
+_FACETS_CONDIM3 = np.arange(4)
 _SIDES = {"r": "r_foot", "right": "r_foot", "r_foot": "r_foot",
           "l": "l_foot", "left": "l_foot", "l_foot": "l_foot"}
