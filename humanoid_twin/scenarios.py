@@ -15,13 +15,14 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from humanoid_twin.clock import US_PER_S
-from humanoid_twin.hardware import FOOT_OF_SCU, N_SCU, PWM_PERIOD_US
+import numpy as np
+
+from humanoid_twin.hardware import FOOT_OF_SCU, PWM_PERIOD_US
 from humanoid_twin.host import drivers
-from humanoid_twin.host.timebase import now as host_now
+from humanoid_twin.host.motion import exe_traj, power_on, send_gains
+from humanoid_twin.host.planners import GAINS, LEG_SCUS, empty_plan, flexao, inclinar, levantar_perna
 from humanoid_twin.host.timebase import sleep as host_sleep
-from humanoid_twin.protocol.canframes import parse_status_byte
-from humanoid_twin.protocol.rs232 import PARAM_CONTROLON, PARAM_POSITION, PARAM_SPECIAL, PARAM_VELOCITY
+from humanoid_twin.protocol.rs232 import ControlType
 from humanoid_twin.twin import Twin
 
 SCENARIOS = ("stand", "flexao", "inclinar", "levantar_perna")
@@ -103,42 +104,51 @@ class Monitor:
         return math.sqrt(self._cop_err_sq / self._cop_err_n)
 
 
-def boot(H: Any, pose: dict[int, list[int]] | None = None, timeout_s: float = BOOT_TIMEOUT_S) -> float:
-    """Power the robot up as the toolbox did: per SCU the stand positions, period 0, PWM on.
+@dataclass
+class Plan:
+    """What a scenario asks of the robot: the planner's ``pos_apply``, ``k``, ``t`` (table 23)."""
 
-    The Slaves take that first actuation with PWM on as the start of their calibration
-    (seed 000, SERVO ``calibration``: move, wait 2 s, 25 samples); this waits until every
-    board reports its Calib status bit, and returns the virtual time it took.
-    """
-    from humanoid_twin.host.motion import adaptate
+    pos_apply: np.ndarray
+    k: np.ndarray
+    t: np.ndarray
 
-    t0 = host_now(H)
-    for scu in range(1, N_SCU + 1):
-        servo = adaptate(scu, (pose or {}).get(scu, [0, 0, 0]))
-        _ok(drivers.applyjoint(H, scu, PARAM_POSITION, [int(round(v)) for v in servo]), "boot position", scu)
-        _ok(drivers.applyjoint(H, scu, PARAM_VELOCITY, [0, 0, 0]), "boot period", scu)
-        _ok(drivers.applyjoint(H, scu, PARAM_SPECIAL, [1, 0, 0]), "PWM on", scu)
-    pending = set(range(1, N_SCU + 1))
-    while pending:
-        if host_now(H) - t0 > timeout_s:
-            raise ScenarioError(f"boards {sorted(pending)} did not finish calibration in {timeout_s} s")
-        host_sleep(H, 0.1)
-        for scu in sorted(pending):
-            r = drivers.readjoint(H, scu, PARAM_POSITION)
-            if r.error == drivers.ErrorCode.OK and parse_status_byte(r.state).calib:
-                pending.discard(scu)
-    return host_now(H) - t0
+    def with_control(self, ctype: int) -> Plan:
+        """The same motions with every leg and hip board (SCU 1-4) on control type ``ctype``
+        (and that type's default gains): ``--control``."""
+        k = self.k.copy()
+        for row in range(len(LEG_SCUS)):
+            k[row, :, :, :3] = GAINS[ControlType(ctype)]
+            k[row, :, :, 3] = ctype
+        return Plan(self.pos_apply, k, self.t)
 
 
-def set_control(H: Any, types: dict[int, int]) -> None:
-    """APPLY_CONTROL CONTROLON with one control type for all three servos of each given SCU."""
-    for scu, ctype in types.items():
-        _ok(drivers.applycontrol(H, scu, PARAM_CONTROLON, [ctype] * 3), "control type", scu)
+# Default planner arguments per scenario (``--T``, ``--motion``).
+DEFAULT_T_S = 1.0
+DEFAULT_MOTION_DEG = {"flexao": 20.0, "inclinar": 10.0, "levantar_perna": 40.0}
+# ``stand``: the vertical posture, BALANCE_CONTROL on the leg boards (foot lateral, foot front,
+# knee), LOCOMOTION_CONTROL on the hips.
+STAND_CONTROL = {1: ControlType.BALANCE_CONTROL, 2: ControlType.BALANCE_CONTROL,
+                 3: ControlType.LOCOMOTION_CONTROL, 4: ControlType.LOCOMOTION_CONTROL}
 
 
-def _ok(result: Any, what: str, scu: int) -> None:
-    if result.error != drivers.ErrorCode.OK:
-        raise ScenarioError(f"{what} on SCU {scu} failed: {result.errorstr} (after {result.tries} tries)")
+def plan(scenario: str, T: float | None = None, motion: float | None = None, perna: int = 1) -> Plan:
+    """The planner call of a scenario with its defaults."""
+    if scenario not in SCENARIOS:
+        raise ScenarioError(f"unknown scenario {scenario!r} (choose from {', '.join(SCENARIOS)})")
+    if scenario == "stand":
+        pos, k, t = empty_plan(1)
+        for scu, ctype in STAND_CONTROL.items():
+            k[scu - 1, :, 0, :3] = GAINS[ctype]
+            k[scu - 1, :, 0, 3] = int(ctype)
+        t[0] = DEFAULT_T_S
+        return Plan(pos, k, t)
+    period = DEFAULT_T_S if T is None else T
+    amount = DEFAULT_MOTION_DEG[scenario] if motion is None else motion
+    if scenario == "flexao":
+        return Plan(*flexao(period, amount))
+    if scenario == "inclinar":
+        return Plan(*inclinar(period, amount))
+    return Plan(*levantar_perna(period, amount, perna))
 
 
 def tilt_profile(
@@ -157,8 +167,6 @@ def tilt_profile(
 
 def run(opts: RunOptions, on_progress: Callable[[float, float], None] | None = None) -> dict[str, Any]:
     """Run one scenario headless and return the SPEC.md section 6 summary."""
-    from humanoid_twin.host import motion
-
     if opts.scenario not in SCENARIOS:
         raise ScenarioError(f"unknown scenario {opts.scenario!r} (choose from {', '.join(SCENARIOS)})")
     twin = Twin(seed=opts.seed)
@@ -176,27 +184,34 @@ def run(opts: RunOptions, on_progress: Callable[[float, float], None] | None = N
         monitor = Monitor(twin)
         monitor.attach()
         H = twin.open_port()
-        boot_s = boot(H)
-        plan = motion.plan(opts.scenario, T=opts.T, motion=opts.motion, perna=opts.perna)
+        try:
+            power_on(H, timeout=BOOT_TIMEOUT_S)
+        except drivers.CommError as exc:
+            raise ScenarioError(f"the twin did not boot: {exc}") from exc
+        boot_s = twin.now_s
+        the_plan = plan(opts.scenario, T=opts.T, motion=opts.motion, perna=opts.perna)
         if opts.control is not None:
-            plan = plan.with_control(CONTROL_CHOICES[opts.control])
-        motion_s = float(sum(plan.t))
+            the_plan = the_plan.with_control(CONTROL_CHOICES[opts.control])
+        motion_s = 0.0 if opts.scenario == "stand" else float(np.sum(the_plan.t))
         tilt_s = abs(opts.tilt) / TILT_RATE_DEG_S
         duration = opts.duration
         if duration is None:
             duration = boot_s + max(motion_s, tilt_s) + SETTLE_S
-        t_start = twin.now_s
         if opts.tilt:
-            twin.plant.set_tilt_profile(tilt_profile(opts.tilt, t_start))
+            twin.plant.set_tilt_profile(tilt_profile(opts.tilt, boot_s))
         if on_progress is not None:
             twin.every(100_000, lambda: on_progress(twin.now_s, duration))
-        set_control(H, plan.control_types())
-        remaining = duration - twin.now_s
-        if plan.t and remaining > 0:
-            motion.exe_traj(H, plan.t, plan.pos_apply, 0.0, k=plan.k)
-        rest = duration - twin.now_s
-        if rest > 0:
-            host_sleep(H, rest)
+        try:
+            if opts.scenario == "stand":
+                for scu in LEG_SCUS:
+                    send_gains(H, scu, the_plan.k[scu - 1, :, 0, :])
+            elif duration > twin.now_s:
+                exe_traj(H, the_plan.t, the_plan.pos_apply, 0.0, k=the_plan.k)
+            rest = duration - twin.now_s
+            if rest > 0:
+                host_sleep(H, rest)
+        except drivers.CommError as exc:
+            raise ScenarioError(f"{opts.scenario}: {exc}") from exc
         wall = time.perf_counter() - wall0
         summary = {
             "scenario": opts.scenario,
@@ -228,11 +243,16 @@ def _round(x: float | None) -> float | None:
     return None if x is None else round(x, 3)
 
 
+# cop_margin_min_mm when no foot pad touched the platform at some sample (airborne or fallen):
+# the CoP is then outside any support polygon, by more than any foot length.
+NO_SUPPORT_MARGIN_MM = -1000.0
+
+
 def _finite(x: float) -> float | None:
     if math.isinf(x):
-        return None if x > 0 else -1e9
-    return round(x, 3)
+        return None if x > 0 else NO_SUPPORT_MARGIN_MM
+    return round(max(x, NO_SUPPORT_MARGIN_MM), 3)
 
 
-__all__ = ["RunOptions", "Monitor", "ScenarioError", "SCENARIOS", "CONTROL_CHOICES", "boot", "run",
-           "set_control", "tilt_profile", "US_PER_S"]
+__all__ = ["RunOptions", "Monitor", "Plan", "ScenarioError", "SCENARIOS", "CONTROL_CHOICES", "plan",
+           "run", "tilt_profile"]
