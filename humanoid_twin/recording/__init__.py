@@ -1,1 +1,44 @@
-"""recording"""
+"""recording: what the twin did, for people and tools (SPEC.md sections 1 and 6).
+
+- :class:`Recorder`: a rerun ``.rrd`` recording of a running twin (buffered columns on the
+  ``sim_time`` timeline, robot in 3D, joints, currents, force sensors, CoP, counters, and a
+  default blueprint). ``humanoid-twin view FILE.rrd`` or ``rerun FILE.rrd`` opens it.
+- :class:`CanLog`: the CAN traffic in python-can's log formats (by suffix), virtual timestamps.
+- Read-back: :func:`read_rrd_entities`, :func:`read_rrd_rows`, :func:`read_rrd_scalars`,
+  :func:`rrd_has_blueprint` (rerun's own loader); :func:`read_can_log`, :func:`decode_can_log`
+  (python-can + the project's DBC).
+
+What is recorded where: docs/recording.md.
+"""
+
+from humanoid_twin.recording.can_log import (
+    CanLog,
+    CanLogError,
+    DecodedFrame,
+    decode_can_log,
+    read_can_log,
+)
+from humanoid_twin.recording.readback import (
+    RrdReadError,
+    read_rrd_entities,
+    read_rrd_rows,
+    read_rrd_scalars,
+    rrd_has_blueprint,
+)
+from humanoid_twin.recording.rerun_recorder import TIMELINE, Recorder, RecorderError
+
+__all__ = [
+    "Recorder",
+    "RecorderError",
+    "TIMELINE",
+    "CanLog",
+    "CanLogError",
+    "DecodedFrame",
+    "read_can_log",
+    "decode_can_log",
+    "RrdReadError",
+    "read_rrd_entities",
+    "read_rrd_rows",
+    "read_rrd_scalars",
+    "rrd_has_blueprint",
+]

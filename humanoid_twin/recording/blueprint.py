@@ -1,0 +1,154 @@
+"""The default layout a twin recording opens with (``rerun.blueprint``, rerun-sdk 0.41).
+
+Left: the robot in 3D (bodies, platform, floor, ground-truth CoP, support polygon, CoM) over the
+two foot views (outline, sensors with their loads, firmware vs ground-truth CoP). Right, in
+tabs: the leg joints (reference / trajectory / measured / true per joint), currents, force
+sensors, CoP and balance, bus counters, and the upper-body boards.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import rerun.blueprint as rrb
+
+from humanoid_twin.hardware import FOOT_OF_SCU, N_SERVOS, SERVO_JOINTS
+from humanoid_twin.recording.paths import (
+    CAN,
+    FEET,
+    MASTER,
+    ROBOT,
+    SERIAL,
+    WORLD,
+    foot_side,
+    scu_path,
+    servo_path,
+)
+
+__all__ = ["default_blueprint", "LEG_SCUS"]
+
+LEG_SCUS: tuple[int, ...] = (1, 2, 3, 4)     # right leg, left leg, right hip, left hip
+
+
+def _joint_title(scu: int, i: int) -> str:
+    return f"{SERVO_JOINTS[scu][i]} (SCU {scu} servo {i + 1})"
+
+
+def _joint_grid(scus: Sequence[int], name: str) -> rrb.Grid:
+    views = [
+        rrb.TimeSeriesView(name=_joint_title(scu, i), origin=f"{servo_path(scu, i)}/position")
+        for scu in scus
+        for i in range(N_SERVOS)
+    ]
+    return rrb.Grid(*views, grid_columns=3, name=name)
+
+
+def default_blueprint(
+    scus: Sequence[int] = tuple(range(1, 9)), master_keys: Sequence[str] = ()
+) -> rrb.Blueprint:
+    """The blueprint sent with every recording (see docs/recording.md, "Blueprint")."""
+    legs = [s for s in LEG_SCUS if s in scus]
+    upper = [s for s in scus if s not in LEG_SCUS]
+    feet = [s for s in scus if s in FOOT_OF_SCU]
+
+    robot_3d = rrb.Spatial3DView(name="Robot", origin=WORLD)
+    foot_views = [
+        rrb.Spatial2DView(name=f"{foot_side(s).capitalize()} foot CoP (mm)", origin=f"{FEET}/{foot_side(s)}")
+        for s in feet
+    ]
+    left = rrb.Vertical(robot_3d, rrb.Horizontal(*foot_views), row_shares=[3, 2]) if foot_views else robot_3d
+
+    currents = rrb.Grid(
+        *[
+            rrb.TimeSeriesView(
+                name=f"{scu_path(s).split('/')[1]} current (0..100)",
+                origin=scu_path(s),
+                contents=[f"{servo_path(s, i)}/current" for i in range(N_SERVOS)],
+            )
+            for s in scus
+        ],
+        grid_columns=2,
+        name="Currents",
+    )
+    forces = rrb.Grid(
+        *[
+            rrb.TimeSeriesView(
+                name=f"{foot_side(s)} foot sensors, firmware 8-bit", origin=f"{scu_path(s)}/force/adc"
+            )
+            for s in feet
+        ],
+        *[
+            rrb.TimeSeriesView(
+                name=f"{foot_side(s)} foot sensors, plant (N)", origin=f"{scu_path(s)}/force/newton"
+            )
+            for s in feet
+        ],
+        grid_columns=2,
+        name="Force sensors",
+    )
+    cop = rrb.Grid(
+        *[
+            rrb.TimeSeriesView(
+                name=f"{foot_side(s)} CoP {axis} (mm): firmware vs truth", origin=f"{scu_path(s)}/cop/{axis}"
+            )
+            for s in feet
+            for axis in ("x", "y")
+        ],
+        rrb.TimeSeriesView(name="CoP margin (mm)", origin=f"{ROBOT}/cop_margin_mm"),
+        rrb.TimeSeriesView(name="trunk tilt (deg)", origin=f"{ROBOT}/trunk_tilt_deg"),
+        rrb.TimeSeriesView(name="CoM height (mm)", origin=f"{ROBOT}/com_height_mm"),
+        rrb.TimeSeriesView(name="fell", origin=f"{ROBOT}/fell"),
+        rrb.TimeSeriesView(name="platform tilt (deg, toes up +)", origin=f"{ROBOT}/platform_tilt_deg"),
+        rrb.TimeSeriesView(name="total normal force (N)", origin=f"{ROBOT}/total_force_n"),
+        grid_columns=2,
+        name="CoP & balance",
+    )
+    counters = rrb.Grid(
+        rrb.TimeSeriesView(name="CAN frames/s", origin=f"{CAN}/frames_per_s"),
+        rrb.TimeSeriesView(name="CAN bus load (%)", origin=f"{CAN}/load_percent"),
+        rrb.TimeSeriesView(
+            name="CAN errors", origin=CAN, contents=[f"{CAN}/error_frames", f"{CAN}/frames_dropped"]
+        ),
+        rrb.TimeSeriesView(name="Master CAN controller (state, TEC, REC)", origin=f"{CAN}/master_controller"),
+        rrb.TimeSeriesView(name="serial bytes", origin=SERIAL),
+        rrb.TimeSeriesView(
+            name="Master serial frames",
+            origin=MASTER,
+            contents=[f"{MASTER}/{k}" for k in master_keys if k.startswith("serial_frames")] or "$origin/**",
+        ),
+        rrb.TimeSeriesView(
+            name="Master CAN",
+            origin=MASTER,
+            contents=[f"{MASTER}/{k}" for k in master_keys if k.startswith("can_")] or "$origin/**",
+        ),
+        grid_columns=2,
+        name="Counters",
+    )
+    boards = rrb.Grid(
+        *[
+            rrb.TimeSeriesView(
+                name=f"{scu_path(s).split('/')[1]}: PWM, calibrated, deadline violations",
+                origin=scu_path(s),
+                contents=[f"{scu_path(s)}/status", f"{scu_path(s)}/deadline_violations"],
+            )
+            for s in scus
+        ],
+        grid_columns=2,
+        name="Boards",
+    )
+    tabs: list[rrb.Container] = []
+    if legs:
+        tabs.append(_joint_grid(legs, "Leg joints"))
+    tabs += [currents]
+    if feet:
+        tabs += [forces, cop]
+    tabs += [counters, boards]
+    if upper:
+        tabs.append(_joint_grid(upper, "Upper body"))
+    return rrb.Blueprint(
+        rrb.Horizontal(left, rrb.Tabs(*tabs), column_shares=[2, 3]),
+        rrb.TimePanel(timeline="sim_time"),
+        rrb.BlueprintPanel(state="collapsed"),
+        rrb.SelectionPanel(state="collapsed"),
+    )
+
