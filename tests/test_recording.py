@@ -8,6 +8,7 @@ knee 10 degrees. The files are read back with rerun's own loader and python-can'
 from __future__ import annotations
 
 import math
+import pathlib
 
 import can
 import numpy as np
@@ -317,3 +318,40 @@ def test_can_log_rejects_bad_paths(tmp_path):
             CanLog(tmp_path / "missing" / "bus.asc", twin.network)
     with pytest.raises(CanLogError, match="cannot read"):
         read_can_log(tmp_path / "bus.txt")
+
+
+def test_columns_have_rerun_s_own_arrow_types(run, tmp_path):
+    """The recorder sends ready arrow arrays; they must be exactly what rerun's archetype helpers
+    make (or the viewer would not draw them)."""
+    import rerun as rr
+    from rerun.chunk import RrdReader
+
+    def types(path: pathlib.Path, entities: dict[str, str]) -> dict[str, str]:
+        out = {}
+        for c in RrdReader(path).stream():
+            name = c.entity_path.lstrip("/")
+            if name in entities and not c.is_static:
+                rb = c.to_record_batch()
+                out[entities[name]] = {f.name: str(f.type) for f in rb.schema if ":" in f.name}
+        return out
+
+    rrd = run[0]
+    ours = types(rrd, {"scu/1_right_leg/servo1/position": "scalars", "world/bodies/trunk": "transform",
+                       "feet/right/cop/truth": "points2d", "feet/right/loads": "radii",
+                       "world/com": "points3d", "world/support_polygon": "strips"})
+    ref_path = tmp_path / "ref.rrd"
+    rec = rr.RecordingStream("ref")
+    rec.save(ref_path)
+    t = [rr.TimeColumn("sim_time", duration=[0.0, 0.02])]
+    rec.send_columns("a", indexes=t, columns=rr.Scalars.columns(scalars=[[1.0, 2.0], [3.0, 4.0]]))
+    rec.send_columns("b", indexes=t, columns=rr.Transform3D.columns(
+        translation=[[0, 0, 0], [1, 1, 1]], quaternion=[[0, 0, 0, 1], [0, 0, 0, 1]]))
+    rec.send_columns("c", indexes=t, columns=rr.Points2D.columns(positions=[[1, 2], [3, 4]]))
+    rec.send_columns("d", indexes=t, columns=rr.Points2D.columns(radii=[1.0, 2.0]))
+    rec.send_columns("e", indexes=t, columns=rr.Points3D.columns(positions=[[1, 2, 3], [3, 4, 5]]))
+    rec.send_columns("f", indexes=t, columns=rr.LineStrips3D.columns(
+        strips=[[[0, 0, 0], [1, 0, 0]], [[0, 0, 0], [0, 1, 0]]]))
+    rec.disconnect()
+    ref = types(ref_path, {"a": "scalars", "b": "transform", "c": "points2d", "d": "radii",
+                           "e": "points3d", "f": "strips"})
+    assert ours == ref

@@ -16,7 +16,6 @@ from humanoid_twin.hardware import FOOT_OF_SCU, N_SERVOS, SERVO_JOINTS
 from humanoid_twin.recording.paths import (
     CAN,
     FEET,
-    MASTER,
     ROBOT,
     SERIAL,
     WORLD,
@@ -44,9 +43,10 @@ def _joint_grid(scus: Sequence[int], name: str) -> rrb.Grid:
 
 
 def default_blueprint(
-    scus: Sequence[int] = tuple(range(1, 9)), master_keys: Sequence[str] = ()
+    scus: Sequence[int] = tuple(range(1, 9)), master_entities: Sequence[str] = ()
 ) -> rrb.Blueprint:
-    """The blueprint sent with every recording (see docs/recording.md, "Blueprint")."""
+    """The blueprint sent with every recording (see docs/recording.md, "Blueprint");
+    ``master_entities``: the ``master/...`` counter entities, one plot each."""
     legs = [s for s in LEG_SCUS if s in scus]
     upper = [s for s in scus if s not in LEG_SCUS]
     feet = [s for s in scus if s in FOOT_OF_SCU]
@@ -111,16 +111,10 @@ def default_blueprint(
         ),
         rrb.TimeSeriesView(name="Master CAN controller (state, TEC, REC)", origin=f"{CAN}/master_controller"),
         rrb.TimeSeriesView(name="serial bytes", origin=SERIAL),
-        rrb.TimeSeriesView(
-            name="Master serial frames",
-            origin=MASTER,
-            contents=[f"{MASTER}/{k}" for k in master_keys if k.startswith("serial_frames")] or "$origin/**",
-        ),
-        rrb.TimeSeriesView(
-            name="Master CAN",
-            origin=MASTER,
-            contents=[f"{MASTER}/{k}" for k in master_keys if k.startswith("can_")] or "$origin/**",
-        ),
+        *[
+            rrb.TimeSeriesView(name=f"Master {p.split('/', 1)[1].replace('_', ' ')}", origin=p)
+            for p in master_entities
+        ],
         grid_columns=2,
         name="Counters",
     )

@@ -81,6 +81,8 @@ _SENSOR_LABELS = ("FL", "FR", "RL", "RR")
 _LOAD_RADIUS_BASE_MM = 2.0
 _LOAD_RADIUS_MM_PER_N = 1.5
 _LOAD_RADIUS_MAX_MM = 30.0
+# Master.stats() keys with these prefixes share one entity (one series per key): master/can, ...
+_MASTER_GROUPS = ("serial_frames_", "serial_bytes_", "can_")
 # An infinite MuJoCo plane (size 0) is drawn as a square of this half size (m).
 _FLOOR_HALF_M = 1.5
 # Height (m) of the CoP point and support polygon above the platform surface, so they show.
@@ -180,7 +182,7 @@ class Recorder:
         self._layout()
         self._alloc()
         self.rec = rr.RecordingStream(app_id, recording_id=uuid.uuid4())
-        bp = default_blueprint(self.scus, self._master_keys) if blueprint else None
+        bp = default_blueprint(self.scus, [p for p, _ in self._master_groups]) if blueprint else None
         try:
             self.rec.save(self.path, default_blueprint=bp)
         except RuntimeError as exc:
@@ -200,9 +202,19 @@ class Recorder:
                 raise RecorderError(f"the twin's plant has no {attr}(): cannot record ground truth")
         self._slaves = [(s, twin.slaves[s]) for s in self.scus]
         self._feet = [s for s in self.scus if s in FOOT_OF_SCU]
-        self._master_keys: list[str] = [
-            k for k, v in twin.master.stats().items() if isinstance(v, (int, float))
-        ]
+        self._master_keys: list[str] = []
+        self._master_groups: list[tuple[str, list[str]]] = []   # (entity, stats keys)
+        for k, v in twin.master.stats().items():
+            if isinstance(v, bool) or not isinstance(v, (int, float)):
+                continue
+            self._master_keys.append(k)
+            group = next((g for g in _MASTER_GROUPS if k.startswith(g)), k)
+            for path, keys in self._master_groups:
+                if path == f"{MASTER}/{group.rstrip('_')}":
+                    keys.append(k)
+                    break
+            else:
+                self._master_groups.append((f"{MASTER}/{group.rstrip('_')}", [k]))
         series: list[_Series] = []
         col = 0
 
@@ -241,8 +253,9 @@ class Recorder:
         add(f"{CAN}/frames_dropped", ("frames dropped",), (_ORANGE,))
         add(f"{CAN}/master_controller", ("state (0 active, 1 passive, 2 off)", "TEC", "REC"))
         add(f"{SERIAL}/bytes", ("to device", "to host"))
-        for k in self._master_keys:
-            add(f"{MASTER}/{k}", (k,))
+        for path, keys in self._master_groups:
+            add(path, keys)
+        self._master_order = [k for _, keys in self._master_groups for k in keys]
         self._series = series
         self._ncols = col
         self._col = {s.path: s.col for s in series}
@@ -401,7 +414,7 @@ class Recorder:
                  ctl.error_state_code, ctl.tec, ctl.rec, link.bytes_to_device, link.bytes_to_host)
         if self._master_keys:
             ms = twin.master.stats()
-            for key in self._master_keys:
+            for key in self._master_order:
                 ap(ms.get(key, nan))
         self._prev_frames = frames
         self._prev_busy = busy
@@ -477,47 +490,55 @@ class Recorder:
                 x = vals[:, col[f"{base}/cop/x/{who}"]]
                 y = vals[:, col[f"{base}/cop/y/{who}"]]
                 ok = ~(np.isnan(x) | np.isnan(y))
-                pts = np.column_stack([x[ok], -y[ok]])
-                rec.send_columns(f"{v}/cop/{who}", indexes=idx, columns=rr.Points2D.columns(
-                    positions=pts).partition(ok.astype(np.int32)))
+                offsets = np.zeros(len(ok) + 1, dtype=np.int32)
+                np.cumsum(ok, out=offsets[1:])
+                pts = np.column_stack([x[ok], -y[ok]])        # drawn with forward up
+                rec.send_columns(f"{v}/cop/{who}", indexes=idx, columns=[
+                    rr.ComponentColumn(_D_POSITIONS2D, _Arrow(_vec_array(pts, _VEC2)), offsets=offsets)])
             k0 = col[f"{base}/force/newton"]
             forces = vals[:, k0:k0 + N_SPECIAL_SENSORS]
             radii = np.clip(_LOAD_RADIUS_BASE_MM + _LOAD_RADIUS_MM_PER_N * forces, 0.0, _LOAD_RADIUS_MAX_MM)
-            rec.send_columns(f"{v}/loads", indexes=idx, columns=rr.Points2D.columns(
-                radii=radii.reshape(-1)).partition(np.full(len(forces), N_SPECIAL_SENSORS, dtype=np.int32)))
+            rec.send_columns(f"{v}/loads", indexes=idx, columns=[rr.ComponentColumn(
+                _D_RADII2D, _Arrow(pa.array(radii.astype(np.float32).ravel())),
+                offsets=_offsets(len(forces), N_SPECIAL_SENSORS))])
 
     def _send_world(self, idx: list, n: int) -> None:
         rec = self.rec
+        unit = _offsets(n, 1)
         com = self._com[:n]
-        rec.send_columns(f"{WORLD}/com", indexes=idx, columns=rr.Points3D.columns(positions=com))
-        cop = self._cop3[:n]
-        ok = ~np.isnan(cop[:, 0])
-        rows = np.flatnonzero(ok)
-        pts = np.column_stack([cop[ok], self._platform_z(rows, cop[ok])])
-        rec.send_columns(f"{WORLD}/cop", indexes=idx, columns=rr.Points3D.columns(
-            positions=pts).partition(ok.astype(np.int32)))
         ground = com.copy()
         ground[:, 2] = self._platform_z(np.arange(n), com[:, :2])
-        rec.send_columns(f"{WORLD}/com_ground", indexes=idx, columns=rr.Points3D.columns(positions=ground))
+        cop = self._cop3[:n]
+        ok = ~np.isnan(cop[:, 0])
+        cop_offsets = np.zeros(n + 1, dtype=np.int32)
+        np.cumsum(ok, out=cop_offsets[1:])
+        cop_pts = np.column_stack([cop[ok], self._platform_z(np.flatnonzero(ok), cop[ok])])
+        for path, pts, offsets in ((f"{WORLD}/com", com, unit), (f"{WORLD}/com_ground", ground, unit),
+                                   (f"{WORLD}/cop", cop_pts, cop_offsets)):
+            rec.send_columns(path, indexes=idx, columns=[
+                rr.ComponentColumn(_D_POSITIONS3D, _Arrow(_vec_array(pts, _VEC3)), offsets=offsets)])
+        # support polygon: one closed line strip per row (none when nothing touches)
         polys: list[np.ndarray] = []
         rows_of: list[np.ndarray] = []
-        lengths = np.zeros(n, dtype=np.int32)
+        strip_offsets = np.zeros(n + 1, dtype=np.int32)
         for r, poly in enumerate(self._poly[:n]):
-            if poly is None or len(poly) < 2:
-                continue
-            p = np.asarray(poly, dtype=float)[:, :2]
-            if len(p) > 2:
-                p = np.vstack([p, p[:1]])     # closed outline
-            polys.append(p)
-            rows_of.append(np.full(len(p), r))
-            lengths[r] = 1
-        strips: list[np.ndarray] = []
+            if poly is not None and len(poly) >= 2:
+                p = np.asarray(poly, dtype=float)[:, :2]
+                if len(p) > 2:
+                    p = np.vstack([p, p[:1]])     # closed outline
+                polys.append(p)
+                rows_of.append(np.full(len(p), r))
+            strip_offsets[r + 1] = len(polys)
         if polys:
             xy = np.concatenate(polys)
             xyz = np.column_stack([xy, self._platform_z(np.concatenate(rows_of), xy)])
-            strips = np.split(xyz, np.cumsum([len(p) for p in polys])[:-1])
-        rec.send_columns(f"{WORLD}/support_polygon", indexes=idx, columns=rr.LineStrips3D.columns(
-            strips=strips).partition(lengths))
+        else:
+            xyz = np.zeros((0, 3))
+        point_offsets = np.zeros(len(polys) + 1, dtype=np.int32)
+        np.cumsum([len(p) for p in polys], out=point_offsets[1:])
+        strips = pa.ListArray.from_arrays(pa.array(point_offsets), _vec_array(xyz, _VEC3), type=_STRIP3)
+        rec.send_columns(f"{WORLD}/support_polygon", indexes=idx, columns=[
+            rr.ComponentColumn(_D_STRIPS3D, _Arrow(strips), offsets=strip_offsets)])
 
     def _platform_z(self, rows: np.ndarray, xy: np.ndarray) -> np.ndarray:
         """Height (m) of the platform's top surface under world points ``xy`` at buffered rows
@@ -587,8 +608,14 @@ _D_SCALARS = rr.Scalars.descriptor_scalars()
 _D_TRANSLATION = rr.Transform3D.descriptor_translation()
 _D_QUATERNION = rr.Transform3D.descriptor_quaternion()
 # rerun's own arrow types for Vec3D / Quaternion (fixed-size lists of non-null float32)
+_D_POSITIONS2D = rr.Points2D.descriptor_positions()
+_D_RADII2D = rr.Points2D.descriptor_radii()
+_D_POSITIONS3D = rr.Points3D.descriptor_positions()
+_D_STRIPS3D = rr.LineStrips3D.descriptor_strips()
+_VEC2 = pa.list_(pa.field("item", pa.float32(), nullable=False), 2)
 _VEC3 = pa.list_(pa.field("item", pa.float32(), nullable=False), 3)
 _VEC4 = pa.list_(pa.field("item", pa.float32(), nullable=False), 4)
+_STRIP3 = pa.list_(pa.field("item", _VEC3, nullable=False))
 
 
 class _Arrow:
