@@ -87,6 +87,7 @@ class Rig:
         self.types = {k: (0, 0, 0) for k in range(1, 9)}
         self.speeds = {k: (0, 0, 0) for k in range(1, 9)}
         self.kp = {k: (0, 0, 0) for k in range(1, 9)}
+        self.ki = {k: (0, 0, 0) for k in range(1, 9)}
 
     def packet(self, scu: int, index: int, dst: int | None = None, op: int = OP_ACTUATION) -> can.Message:
         if index == 0:
@@ -94,7 +95,7 @@ class Rig:
                 self.refs[scu], self.speeds[scu], control_byte(self.pwm, self.calib, self.types[scu]), 0
             )
         else:
-            payload = pack_actuation2((0, 0, 0), self.kp[scu], 0, 0)
+            payload = pack_actuation2(self.ki[scu], self.kp[scu], 0, 0)
         arb = can_id(0, scu if dst is None else dst, index, op)
         return can.Message(arbitration_id=arb, data=payload, is_extended_id=False)
 
@@ -393,3 +394,27 @@ def test_with_the_real_master_over_rs232():
         status = parse_status_byte(r.values[3])
         assert status.pwm and status.calib
         assert not twin.plant.truth().fell
+
+
+def test_locomotion_pid_tracks_a_move_and_removes_the_steady_error():
+    rig = Rig(addresses=[8], phases={8: 7_000}, seed=3)
+    rig.poll()
+    rig.pwm = True
+    rig.run_until(2_700_000)
+    s = rig.slaves[8]
+    assert s.calibrated
+    rig.types[8] = (1, 1, 0)                       # LOCOMOTION on servos 1 and 2
+    rig.ki[8] = (2, 2, 0)                          # KI = 2/16 per tick (the host's default)
+    rig.refs[8] = (35, -25, 0)
+    rig.speeds[8] = (50, 50, 0)
+    t0 = rig.clock.now_us
+    rig.run_until(t0 + 2_000_000)
+    assert [s.sensors.servo[i].pos for i in range(2)] == [35, -25]
+    assert all(abs(rig.plant.servo_angle_deg(8, i) - r) <= 1.0 for i, r in enumerate((35, -25)))
+    st, _ = last_status(rig, 8)
+    assert st.fin_all
+    # with KI = 0 the incremental PID holds its command: the servo does not follow a new reference
+    rig.ki[8] = (0, 0, 0)
+    rig.refs[8] = (0, 0, 0)
+    rig.run_until(rig.clock.now_us + 1_500_000)
+    assert abs(s.sensors.servo[0].pos - 35) <= 1

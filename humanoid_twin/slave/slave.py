@@ -98,6 +98,7 @@ class Slave:
         self._refs = [0] * N_SERVOS
         self._periods = [0] * N_SERVOS
         self._types = [0] * N_SERVOS
+        self._start = [0] * N_SERVOS
         self.main()
 
     # -- main -------------------------------------------------------------------------------------
@@ -190,7 +191,13 @@ class Slave:
                 refs[i] = a.ref
                 periods[i] = a.speed
                 types[i] = act.control[i].type
-            restarted = traj.trajectory(refs, periods, types, servo.output)
+            # a new trajectory starts from the position commanded now: the balance laws'
+            # output (reference + offset), or, under the PID, its reference (the PID's own
+            # command carries its integral correction, which it keeps)
+            start = self._start
+            for i in range(N_SERVOS):
+                start[i] = traj.position[i] if servo.types[i] == LOCOMOTION_CONTROL else servo.output[i]
+            restarted = traj.trajectory(refs, periods, types, start)
             for i in range(N_SERVOS):
                 if restarted >> i & 1:
                     servo.newTrajectory(i)
