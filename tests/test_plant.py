@@ -460,6 +460,8 @@ def test_bad_input_gets_clear_errors(tmp_path) -> None:
         p.set_pwm(1, [1500, "1500", 1500])
     with pytest.raises(PlantInputError, match="3 pulses"):
         p.set_pwm(1, [1500, 1500])
+    with pytest.raises(PlantInputError, match="3 pulses"):
+        p.set_pwm(1, 1500)
     with pytest.raises(PlantInputError, match="servo index"):
         p.servo_angle_deg(1, 3)
     with pytest.raises(PlantInputError, match="tilt"):

@@ -291,8 +291,12 @@ class Plant:
         rows = self._servo.get(scu) if type(scu) is int else None
         if rows is None:
             _check_scu(scu)
-        if len(pulses_us) != hardware.N_SERVOS:
-            raise PlantInputError(f"SCU {scu}: need {hardware.N_SERVOS} pulses, got {len(pulses_us)}")
+        try:
+            n = len(pulses_us)
+        except TypeError:
+            n = -1
+        if n != hardware.N_SERVOS:
+            raise PlantInputError(f"SCU {scu}: need a sequence of 3 pulses, got {pulses_us!r}")
         lo = hardware.pulse_from_deg(hardware.POS_MIN_DEG)
         hi = hardware.pulse_from_deg(hardware.POS_MAX_DEG)
         for p in pulses_us:
