@@ -117,7 +117,7 @@ class Plan:
         (and that type's default gains): ``--control``."""
         k = self.k.copy()
         for row in range(len(LEG_SCUS)):
-            k[row, :, :, :3] = GAINS[ControlType(ctype)]
+            k[row, :, :, :3] = np.asarray(GAINS[ControlType(ctype)])[:, None, :]
             k[row, :, :, 3] = ctype
         return Plan(self.pos_apply, k, self.t)
 
