@@ -191,7 +191,7 @@ def exe_traj(
     Textra: float,
     k: Any = None,
     *,
-    scus: Iterable[int] = LEG_SCUS,
+    scus: Iterable[int] | None = None,
     dt: float = TICK_S,
     tables: RobotTables | None = None,
 ) -> TrajData:
@@ -201,11 +201,14 @@ def exe_traj(
     KI, KP, KD, CONTROLON; only when they changed since the last motion; ``k=None`` sends none),
     the period ``t[m]`` (``applyjoint`` VELOCITY, ``round(t[m] / 0.02)`` ticks), the positions
     ``limit(correct(adaptate(pos_apply[:, :, m])))`` (``applyjoint`` POSITION), then sample the
-    position, velocity and current of every SCU in ``scus`` (default the legs and hips, 1-4)
-    every ``dt`` seconds (0 = as fast as the link allows) until ``t[m]`` seconds have passed on
-    the time base since the motion was sent (``t[m] + Textra`` for the last motion).
+    position, velocity and current of every SCU in ``scus`` every ``dt`` seconds (0 = as fast as
+    the link allows) until ``t[m]`` seconds have passed on the time base since the motion was
+    sent (``t[m] + Textra`` for the last motion).
+
+    ``scus`` (the N_TEST units): by default the SCUs in use, the legs and hips (1-4) plus any
+    other board the plan moves or sets gains for (e.g. SCU 5's torso roll in
+    ``levantar_perna``), in address order.
     """
-    scus_t = _scus(scus)
     tt_in = np.atleast_1d(np.asarray(t, dtype=float))
     if tt_in.ndim != 1:
         raise ValueError(f"t must be a vector of motion durations, got shape {tt_in.shape}")
@@ -218,6 +221,17 @@ def exe_traj(
             f"pos_apply must be {N_SCU} x {N_SERVOS} x N_MOTIONS with N_MOTIONS = len(t) = {n_m}, "
             f"got shape {pos.shape}"
         )
+    kk = None
+    if k is not None:
+        kk = np.asarray(k)
+        if kk.shape != (N_SCU, N_SERVOS, n_m, 4):
+            raise ValueError(f"k must be {N_SCU} x {N_SERVOS} x {n_m} x 4, got shape {kk.shape}")
+    if scus is None:
+        used = {s for s in range(1, N_SCU + 1) if np.any(pos[s - 1] != 0)}
+        if kk is not None:
+            used |= {s for s in range(1, N_SCU + 1) if np.any(kk[s - 1] != 0)}
+        scus = sorted(used | set(LEG_SCUS))
+    scus_t = _scus(scus)
     if np.any(~np.isfinite(pos[[s - 1 for s in scus_t]])):
         raise ValueError("pos_apply has non-finite values for the SCUs driven")
     ticks = [period_ticks(v) for v in tt_in]
@@ -226,11 +240,6 @@ def exe_traj(
     textra = float(Textra)
     if not math.isfinite(textra) or textra < 0:
         raise ValueError(f"Textra must be >= 0 s, got {Textra!r}")
-    kk = None
-    if k is not None:
-        kk = np.asarray(k)
-        if kk.shape != (N_SCU, N_SERVOS, n_m, 4):
-            raise ValueError(f"k must be {N_SCU} x {N_SERVOS} x {n_m} x 4, got shape {kk.shape}")
     if not (math.isfinite(dt) and dt >= 0):
         raise ValueError(f"dt must be >= 0 s, got {dt!r}")
     tab = tables or default_tables()

@@ -39,6 +39,7 @@ __all__ = [
     "GAINS",
     "LEG_SCUS",
     "SHIFT_DEG",
+    "TORSO_LEAN_DEG",
     "R_LEG",
     "L_LEG",
     "R_HIP",
@@ -68,24 +69,46 @@ TICK_S = PWM_PERIOD_US / 1e6
 MAX_PERIOD_S = 255 * TICK_S          # the movement period travels as one byte of 20 ms ticks
 
 # Gains per control type: rows servo 1..3, columns (KI, KP, KD), raw bytes of the CAN packets.
-# LOCOMOTION (incremental PID, Q4.4 bytes = gain * 16, docs/firmware.md): KI 0.5, KP 0.5, KD 0:
-# the outer loop removes the servo's load sag in a few ticks and lags a 1 s ramp by ~2 deg.
-# BALANCE (Jacobian-transpose CoP law, only KP is used: v = (KP * J^T e) >> 16 in 1/256 deg/tick):
-# KP 4 on foot lateral, foot front and knee = ~11 deg/s at a 10 mm CoP error, well under the
-# firmware's 50 deg/s limiter. REACTION (proportional CoP law, KP/256 deg/tick per mm): KP 8.
+# LOCOMOTION (incremental PID of fig. 8 on the measured servo position, Q4.4 bytes = gain x 16,
+# docs/firmware.md): KI 1 (1/16 per tick), KP 0, KD 0. The PID's output *is* the servo command
+# and the hobby servo already follows its command, so this outer loop acts as an integrator
+# behind 3-5 ticks of measurement delay (pot sampling, filters, servo speed). Measured in the
+# twin (seed 0), trunk tilt max: flexao 20 deg in 1 s: KI 1 -> 1.5 deg, KI 2 -> 1.6, KI 3 -> 9,
+# KI 4 -> 14-26, KI 8 + KP 8 -> oscillates and falls; flexao 25 deg in 1 s: KI 1 -> 2.1, KI 2 ->
+# 7.9 (rocks on the toes). KP and KD only add phase lag here (KI 2 + KP 2 -> 4.3 deg). Final
+# error 0 deg (NO_CONTROL keeps the pot calibration error, ~1 deg); the price is a lag behind
+# the cubic during the motion (~16 deg on a 40 deg knee motion in 1 s, ~8 deg in 2 s).
+# BALANCE (Jacobian-transpose CoP law on foot lateral, foot front and knee; only KP is used:
+# v = (KP * J^T e) >> 16 in 1/256 deg/tick, e = CoP_ref - CoP in mm): KP 1 = ~2.8 deg/s at a
+# 10 mm CoP error. Measured in the twin (levantar_perna knee 50 deg, T 1 s, seeds 0 and 1, both
+# legs; BALANCE on the support leg during the hold): KP 1 -> trunk tilt max 1.3-4.6 deg, no
+# fall; KP 2 -> falls backward on one side; KP 4 -> falls: moving the body over the foot
+# needs an ankle torque that first pushes the CoP the other way, and the velocity law chases it.
+# BALANCE during the lift and the lower too (both feet still down, the foot's CoP held at its
+# outer edge by the two legs' internal forces) -> the law undoes the weight shift and falls.
+# REACTION (proportional CoP law, KP/256 deg/tick per mm): KP 1, same reasoning.
 GAINS: dict[ControlType, tuple[tuple[int, int, int], ...]] = {
     ControlType.NO_CONTROL: ((0, 0, 0),) * 3,
-    ControlType.LOCOMOTION_CONTROL: ((8, 8, 0),) * 3,
-    ControlType.REACTION_CONTROL: ((0, 8, 0), (0, 8, 0), (8, 8, 0)),
-    ControlType.BALANCE_CONTROL: ((0, 4, 0),) * 3,
+    ControlType.LOCOMOTION_CONTROL: ((1, 0, 0),) * 3,
+    ControlType.REACTION_CONTROL: ((0, 1, 0), (0, 1, 0), (1, 0, 0)),
+    ControlType.BALANCE_CONTROL: ((0, 1, 0),) * 3,
 }
 
-# levantar_perna: lateral lean (ankle roll, hip roll opposite) that puts the mass centre over the
-# support foot before the other foot leaves the floor. Hips 110 mm apart, 190 mm from hip roll to
-# ankle roll: asin(55/190) = 16.8 deg would bring the trunk over the support ankle; the legs and
-# the raised leg stay behind, 14 deg puts the whole robot's mass centre well inside the support
-# foot's pads (+-33 mm wide), checked in tests/test_host_drivers.py with the real plant.
-SHIFT_DEG = 14.0
+# levantar_perna: lateral lean of both legs (ankle roll, hip roll opposite) and of the upper
+# torso (torso roll, SCU 5) toward the support leg before the other foot leaves the floor.
+# Measured in the twin (seed 0, knee 50 deg, T 1 s): the robot's mass centre moves 2.2 mm per
+# degree of leg lean (inclinar 20 -> 45 mm, 24 -> 55 mm = over the support foot's centre, hips
+# 110 mm apart). In single support the support hip's roll servo carries everything above it
+# (trunk, arms, head and the raised leg, ~3.6 kg) at ~75 mm: ~2.7 N.m, over the HS-805BB's
+# 2.42 N.m stall, so with the legs alone the hip sags 5 deg and the robot falls sideways when the
+# leg comes down. Leaning the upper torso 20 deg toward the support leg moves that load over the
+# hip: legs 18 deg + torso 20 deg -> trunk tilt max 2.9 deg, CoP margin min 5 mm, no fall
+# (LOCOMOTION everywhere); legs 22 + torso 0 -> falls; 15/22 -> tilt 2.2, margin 4 mm.
+SHIFT_DEG = 18.0
+TORSO_LEAN_DEG = 20.0
+BODY = 4                  # row of SCU 5 (body): servo 1 torso roll, 2 torso pitch, 3 bench servo
+TORSO_ROLL = 0
+HOLD = 2                  # levantar_perna's motion index of the hold (single support)
 
 
 def _period(T: Any) -> float:
@@ -185,7 +208,7 @@ def inclinar(T: float, motion: float) -> tuple[np.ndarray, np.ndarray, np.ndarra
 
 
 def levantar_perna(
-    T: float, motion: float, perna: Any, *, shift: float = SHIFT_DEG
+    T: float, motion: float, perna: Any, *, shift: float = SHIFT_DEG, torso: float = TORSO_LEAN_DEG
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``[pos_apply, k, t] = levantar_perna(T, motion, perna)`` (table 22): lift a leg until its
     knee is at ``motion`` degrees (0..90). ``perna`` 1 = right leg, 2 = left leg, any other value =
@@ -194,7 +217,9 @@ def levantar_perna(
     One leg, 5 motions of ``T`` seconds each:
 
     1. shift: both legs lean ``shift`` degrees toward the support leg (as ``inclinar``: ankle
-       roll ``+-shift``, hip roll opposite), putting the mass centre over the support foot;
+       roll ``+-shift``, hip roll opposite) and the upper torso leans ``torso`` degrees the same
+       way (torso roll, SCU 5 servo 1: ``-torso`` for the left support leg), putting the mass
+       centre over the support foot and the upper body's load over the support hip;
     2. lift: the raised leg flexes: hip pitch ``-motion/2``, knee ``motion``, ankle pitch
        ``-motion/2`` (foot parallel to the floor, straight under the hip, raised by
        ``2 x 95 mm x (1 - cos(motion/2))``);
@@ -202,29 +227,33 @@ def levantar_perna(
     4. lower: back to the shift pose;
     5. return: vertical posture.
 
-    Control: LOCOMOTION_CONTROL everywhere, except the support leg's board (foot lateral, foot
-    front, knee), which runs BALANCE_CONTROL during lift, hold and lower.
+    Control: LOCOMOTION_CONTROL on SCUs 1-5, except the support leg's board (foot lateral, foot
+    front, knee), which runs BALANCE_CONTROL during the hold (single support: the other foot is
+    up, so the support foot's CoP is the robot's).
 
-    Both legs: 3 motions (both legs flex as in step 2, hold, return), LOCOMOTION_CONTROL.
+    Both legs: 3 motions (both legs flex as in step 2, hold, return), LOCOMOTION_CONTROL on the
+    legs and hips.
     """
     T = _period(T)
     a = _angle("motion", motion, 0.0, 90.0, "the knee's range")
     s = _angle("shift", shift, 0.0, 30.0, "the roll joints' structure limit")
+    tr = _angle("torso", torso, 0.0, 30.0, "the torso roll's structure limit")
     flex = {"hip_pitch": -a / 2, "knee": a, "ankle_pitch": -a / 2}
     legs = (R_LEG, L_LEG, R_HIP, L_HIP)
     if perna in (1, 2) and not isinstance(perna, bool):
         lifted = 0 if perna == 1 else 1          # side index: 0 right, 1 left
         support_row = L_LEG if lifted == 0 else R_LEG
-        lean = s if lifted == 0 else -s          # + = trunk to the left, over the left foot
+        sign = 1.0 if lifted == 0 else -1.0      # + = toward the left leg
         pos, k, t = empty_plan(5)
-        for side in (0, 1):
-            for m in (0, 1, 2, 3):
+        for m in (0, 1, 2, 3):
+            for side in (0, 1):
                 extra = flex if (side == lifted and m in (1, 2)) else {}
-                leg_pose(pos, m, side, hip_roll=-lean, ankle_roll=lean, **extra)
+                leg_pose(pos, m, side, hip_roll=-sign * s, ankle_roll=sign * s, **extra)
+            pos[BODY, TORSO_ROLL, m] = -sign * tr   # roll about +x: negative leans the top left
         for m in range(5):
-            for row in legs:
+            for row in (*legs, BODY):
                 ctype = ControlType.LOCOMOTION_CONTROL
-                if row == support_row and m in (1, 2, 3):
+                if row == support_row and m == HOLD:
                     ctype = ControlType.BALANCE_CONTROL
                 _set_k(k, row, m, ctype)
         t[:] = T
