@@ -193,7 +193,7 @@ def test_recording_does_not_change_the_run(run, tmp_path):
 def test_recorder_cost_is_small(run):
     _, _, _, _, facts = run
     # measured ~0.02-0.03 s of wall per simulated second here (docs/recording.md); the bound is
-    # loose for a shared machine, but a per-value rr.log design (~250 values x 50 Hz x 70 us
+    # loose for a shared machine, but a per-value rr.log design (~270 values x 50 Hz x 70 us
     # = 0.9 s/s) cannot pass it
     assert facts["rec_cost"] < 0.25
 
@@ -243,6 +243,8 @@ def test_recorder_rejects_bad_input(tmp_path):
             Recorder(tmp_path / "run.rrd", twin, scus=[1, 9])
         with pytest.raises(ValueError, match="chunk_s"):
             Recorder(tmp_path / "run.rrd", twin, chunk_s=float("nan"))
+        with pytest.raises(ValueError, match="smaller chunk_s"):
+            Recorder(tmp_path / "run.rrd", twin, chunk_s=3600)
     with pytest.raises(FileNotFoundError):
         read_rrd_entities(tmp_path / "nothing.rrd")
     junk = tmp_path / "junk.rrd"

@@ -83,6 +83,8 @@ _LOAD_RADIUS_MM_PER_N = 1.5
 _LOAD_RADIUS_MAX_MM = 30.0
 # Master.stats() keys with these prefixes share one entity (one series per key): master/can, ...
 _MASTER_GROUPS = ("serial_frames_", "serial_bytes_", "can_")
+# Largest buffer (rows per chunk): 10 000 rows x ~270 columns x 8 bytes = ~22 MB.
+_MAX_CHUNK_ROWS = 10_000
 # An infinite MuJoCo plane (size 0) is drawn as a square of this half size (m).
 _FLOOR_HALF_M = 1.5
 # Height (m) of the CoP point and support polygon above the platform surface, so they show.
@@ -177,6 +179,11 @@ class Recorder:
         self._closed = False
         self._t0_us = twin.clock.now_us
         self._rows = max(1, round(chunk_s * US_PER_S / period_us))
+        if self._rows > _MAX_CHUNK_ROWS:
+            raise ValueError(
+                f"chunk_s={chunk_s} s at period_us={period_us} buffers {self._rows} rows; at most "
+                f"{_MAX_CHUNK_ROWS} (memory): use a smaller chunk_s"
+            )
         self._n = 0
 
         self._layout()
