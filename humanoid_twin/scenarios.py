@@ -69,8 +69,14 @@ class Monitor:
     tilt_deg: list[float] = field(default_factory=list)
 
     def attach(self) -> None:
-        """Register on the twin's clock."""
+        """Register on the twin's clock: the truth every 20 ms, and the CoP comparison of each
+        leg board right after its own tick (its force samples and the truth of the same instant)."""
         self.twin.every(PWM_PERIOD_US, self.sample)
+        for scu, foot in FOOT_OF_SCU.items():
+            first = self.twin.phases_us[scu]
+            while first < self.twin.clock.now_us:
+                first += PWM_PERIOD_US
+            self.twin.every(PWM_PERIOD_US, lambda scu=scu, foot=foot: self.compare_cop(scu, foot), first)
 
     def sample(self) -> None:
         """One 20 ms sample of the truth (after the boards' ticks at this instant)."""
@@ -86,15 +92,21 @@ class Monitor:
         self.trunk_tilt_max_deg = max(self.trunk_tilt_max_deg, gt.trunk_tilt_deg)
         # -inf when nothing touches the platform (the robot is in the air or lying)
         self.cop_margin_min_mm = min(self.cop_margin_min_mm, gt.cop_margin_mm)
-        for scu, foot in FOOT_OF_SCU.items():
-            slave = twin.slaves[scu]
-            truth = gt.foot_cop_mm.get(foot)
-            if truth is None or not slave.cop_loaded or not slave.calibrated:
-                continue
-            dx = slave.cop_x - truth[0]
-            dy = slave.cop_y - truth[1]
-            self._cop_err_sq += dx * dx + dy * dy
-            self._cop_err_n += 1
+
+    def compare_cop(self, scu: int, foot: str) -> None:
+        """Firmware CoP of board ``scu`` (computed at its tick, just now) vs the contact CoP."""
+        twin = self.twin
+        slave = twin.slaves[scu]
+        if twin.now_s < self.start_s or not slave.cop_loaded or not slave.calibrated:
+            return
+        twin.plant.advance_to(twin.clock.now_us)
+        truth = twin.plant.truth().foot_cop_mm.get(foot)
+        if truth is None:
+            return
+        dx = slave.cop_x - truth[0]
+        dy = slave.cop_y - truth[1]
+        self._cop_err_sq += dx * dx + dy * dy
+        self._cop_err_n += 1
 
     @property
     def cop_error_rms_mm(self) -> float | None:

@@ -47,9 +47,9 @@ class Twin:
         self.master = Master(self.clock, self.network, self.link)
         # Slave PWM periods are not synchronised on the robot: each board starts its 20 ms
         # period at its own phase, drawn from the seed (docs/firmware.md).
-        phases = _phases(seed)
+        self.phases_us: dict[int, int] = dict(zip(range(1, N_SCU + 1), _phases(seed), strict=True))
         self.slaves: dict[int, Slave] = {
-            scu: Slave(scu, self.clock, self.plant, self.network, phase_us=phases[scu - 1], seed=seed)
+            scu: Slave(scu, self.clock, self.plant, self.network, phase_us=self.phases_us[scu], seed=seed)
             for scu in range(1, N_SCU + 1)
         }
         self.name = name or f"twin{next(_names)}"
