@@ -333,6 +333,8 @@ def test_deadline_violation_is_reported_in_the_status_byte(lone):
     flags = [parse_status_byte(m.data[7]).deadline for _, _, m in rig.rec.sensors_from(3)]
     assert flags == [True, False]
     assert rig.slaves[3].deadline_violations == 1
+    with pytest.raises(ValueError, match="delay_us"):
+        rig.slaves[3].inject_deadline_violation(PERIOD)
 
 
 # ---------------------------------------------------------------------------------------------

@@ -458,3 +458,13 @@ def test_receive_can_message_fills_the_actuator_database_and_latches_calib_reque
     # a malformed packet changes nothing and is counted
     assert not sc.receiveCanMessage(0, b"\x01\x02\x03")
     assert sc.rx_errors == 1 and [s.ref for s in a.servo] == [0, 0, 0]
+
+
+def test_slave_rejects_bad_addresses_and_phases():
+    from humanoid_twin.slave import Slave
+
+    for bad in (0, 9, "1", True, 1.0):
+        with pytest.raises(ValueError, match="SCU address"):
+            Slave(bad, Clock(), None, None, phase_us=0)
+    with pytest.raises(ValueError, match="phase_us"):
+        Slave(1, Clock(), None, None, phase_us=-5)
