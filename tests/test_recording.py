@@ -27,6 +27,7 @@ from humanoid_twin.recording import (
     read_rrd_rows,
     read_rrd_scalars,
     rrd_has_blueprint,
+    verify_rrd,
 )
 from humanoid_twin.twin import Twin
 
@@ -99,6 +100,26 @@ def test_rrd_holds_every_entity_with_one_row_per_sample(run):
         for i in range(1, N_SERVOS + 1):
             assert any(e.startswith(f"scu/{scu}_") and e.endswith(f"servo{i}/position") for e in entities)
     assert rrd_has_blueprint(rrd)
+
+
+def test_rrd_passes_rerun_s_own_verification(run, tmp_path):
+    verify_rrd(run[0])      # every column deserialises as its component type (as the viewer does)
+    import pyarrow as pa
+    import rerun as rr
+
+    bad = tmp_path / "bad.rrd"
+    rec = rr.RecordingStream("bad")
+    rec.save(bad)
+
+    class F64:
+        def as_arrow_array(self) -> pa.Array:
+            return pa.array([1.0, 2.0])
+
+    rec.send_columns("x", indexes=[rr.TimeColumn("sim_time", duration=[0.0, 1.0])],
+                     columns=[rr.ComponentColumn(rr.Transform3D.descriptor_translation(), F64())])
+    rec.disconnect()
+    with pytest.raises(RrdReadError, match="Vec3D"):
+        verify_rrd(bad)
 
 
 def test_rrd_rows_are_on_sim_time_and_sent_in_chunks(run):

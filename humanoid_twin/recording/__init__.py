@@ -5,7 +5,8 @@
   default blueprint). ``humanoid-twin view FILE.rrd`` or ``rerun FILE.rrd`` opens it.
 - :class:`CanLog`: the CAN traffic in python-can's log formats (by suffix), virtual timestamps.
 - Read-back: :func:`read_rrd_entities`, :func:`read_rrd_rows`, :func:`read_rrd_scalars`,
-  :func:`rrd_has_blueprint` (rerun's own loader); :func:`read_can_log`, :func:`decode_can_log`
+  :func:`rrd_has_blueprint` (rerun's own loader), :func:`verify_rrd` (``rerun rrd verify``);
+  :func:`read_can_log`, :func:`decode_can_log`
   (python-can + the project's DBC).
 
 What is recorded where: docs/recording.md.
@@ -24,6 +25,7 @@ from humanoid_twin.recording.readback import (
     read_rrd_rows,
     read_rrd_scalars,
     rrd_has_blueprint,
+    verify_rrd,
 )
 from humanoid_twin.recording.rerun_recorder import TIMELINE, Recorder, RecorderError
 
@@ -41,4 +43,5 @@ __all__ = [
     "read_rrd_rows",
     "read_rrd_scalars",
     "rrd_has_blueprint",
+    "verify_rrd",
 ]

@@ -6,7 +6,9 @@ are returned without the leading ``/`` (as the recorder names them: ``scu/1_righ
 
 from __future__ import annotations
 
+import os
 import pathlib
+import subprocess
 from collections import defaultdict
 
 import numpy as np
@@ -17,6 +19,7 @@ __all__ = [
     "read_rrd_rows",
     "read_rrd_scalars",
     "rrd_has_blueprint",
+    "verify_rrd",
 ]
 
 
@@ -95,3 +98,30 @@ def read_rrd_scalars(
         arr[i, : len(v)] = v
     arr = arr[order]
     return t_all[order], (arr[:, 0] if width == 1 else arr)
+
+
+def _rerun_cli() -> pathlib.Path:
+    """The ``rerun`` executable shipped with rerun-sdk (the ``rerun_cli`` package)."""
+    override = os.environ.get("RERUN_CLI_PATH")
+    if override:
+        return pathlib.Path(override)
+    import rerun_cli
+
+    exe = pathlib.Path(rerun_cli.__file__).parent / ("rerun.exe" if os.name == "nt" else "rerun")
+    if not exe.is_file():
+        raise RrdReadError(f"the rerun executable is not installed with rerun-sdk (looked for {exe})")
+    return exe
+
+
+def verify_rrd(path: str | pathlib.Path, timeout_s: float = 120.0) -> None:
+    """Check with rerun's own ``rerun rrd verify`` that every column of the file deserialises as
+    its declared component type (what the viewer will do). ``RrdReadError`` with rerun's message
+    otherwise."""
+    p = pathlib.Path(path)
+    if not p.is_file():
+        raise FileNotFoundError(f"recording {str(p)!r} does not exist")
+    res = subprocess.run(
+        [str(_rerun_cli()), "rrd", "verify", str(p)], capture_output=True, text=True, timeout=timeout_s
+    )
+    if res.returncode != 0:
+        raise RrdReadError(f"rerun rrd verify {str(p)!r} failed: {(res.stderr or res.stdout).strip()}")
