@@ -134,12 +134,14 @@ def cmd_run(args: argparse.Namespace) -> int:
             raise _usage_error(f"--out {out}: a rerun recording must end in .rrd")
         _check_writable(out, "--out")
     if args.can_log is not None:
-        from humanoid_twin.recording.can_log import check_log_path
+        from can.io.logger import MESSAGE_WRITERS
 
-        try:
-            check_log_path(args.can_log)
-        except (ValueError, OSError) as exc:
-            raise _usage_error(f"--can-log {args.can_log}: {exc}") from None
+        from humanoid_twin.recording.can_log import log_suffix
+
+        suffix = log_suffix(args.can_log)
+        if suffix not in MESSAGE_WRITERS:
+            raise _usage_error(f"--can-log {args.can_log}: python-can has no writer for "
+                               f"{suffix or 'no suffix'!r} (use one of {' '.join(sorted(MESSAGE_WRITERS))})")
         _check_writable(args.can_log, "--can-log")
     opts = RunOptions(
         scenario=args.scenario, duration=args.duration, T=args.T, motion=args.motion, perna=args.perna,
