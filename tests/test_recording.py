@@ -29,6 +29,7 @@ from humanoid_twin.recording import (
     rrd_has_blueprint,
     verify_rrd,
 )
+from humanoid_twin.recording.can_log import check_log_path
 from humanoid_twin.twin import Twin
 
 DURATION_US = 3_000_000
@@ -339,6 +340,14 @@ def test_can_log_rejects_bad_paths(tmp_path):
             CanLog(tmp_path / "bus", twin.network)
         with pytest.raises(OSError, match="cannot write the CAN log"):
             CanLog(tmp_path / "missing" / "bus.asc", twin.network)
+        (tmp_path / "ro").mkdir()
+        (tmp_path / "ro" / "bus.asc").mkdir()      # a directory where the file should go
+        with pytest.raises(IsADirectoryError):
+            CanLog(tmp_path / "ro" / "bus.asc", twin.network)
+    assert check_log_path(tmp_path / "bus.blf.gz") == ".blf"
+    assert not (tmp_path / "bus.blf.gz").exists()     # checking creates nothing
+    with pytest.raises(CanLogError, match="unknown format"):
+        check_log_path("bus.mp3")
     with pytest.raises(CanLogError, match="cannot read"):
         read_can_log(tmp_path / "bus.txt")
 

@@ -28,7 +28,15 @@ from humanoid_twin.protocol import canframes
 if TYPE_CHECKING:
     import cantools.database
 
-__all__ = ["CanLog", "CanLogError", "DecodedFrame", "read_can_log", "decode_can_log", "log_suffix"]
+__all__ = [
+    "CanLog",
+    "CanLogError",
+    "DecodedFrame",
+    "check_log_path",
+    "read_can_log",
+    "decode_can_log",
+    "log_suffix",
+]
 
 
 class CanLogError(ValueError):
@@ -54,6 +62,35 @@ def _reader_suffixes() -> list[str]:
     from can.io import player as _player
 
     return sorted(_player.MESSAGE_READERS)
+
+
+def check_log_path(path: str | pathlib.Path) -> str:
+    """Check, without creating anything, that a CAN log can be written at ``path``: a format
+    python-can writes (by suffix, optionally ``.gz``), its optional dependency installed, an
+    existing directory. Returns the format suffix (``.asc``). :class:`CanLogError` (a
+    ``ValueError``) or ``FileNotFoundError``/``IsADirectoryError`` (``OSError``) otherwise."""
+    p = pathlib.Path(path)
+    suffix = log_suffix(p)
+    known = _writer_suffixes()
+    if suffix not in known:
+        raise CanLogError(
+            f"CAN log {str(p)!r}: unknown format {suffix or '(no suffix)'!r}; "
+            f"python-can writes {', '.join(known)} (optionally + .gz)"
+        )
+    if suffix == ".mf4":
+        try:
+            import asammdf  # noqa: F401
+        except ImportError:
+            raise CanLogError(
+                f"CAN log {str(p)!r}: format '.mf4' needs the asammdf package (pip install python-can[mf4])"
+            ) from None
+    if p.is_dir():
+        raise IsADirectoryError(f"CAN log {str(p)!r} is a directory")
+    if not p.parent.is_dir():
+        raise FileNotFoundError(
+            f"cannot write the CAN log {str(p)!r}: directory {str(p.parent)!r} does not exist"
+        )
+    return suffix
 
 
 class _Tap(can.Listener):
@@ -89,13 +126,7 @@ class CanLog:
 
     def __init__(self, path: str | pathlib.Path, network: Any) -> None:
         self.path = pathlib.Path(path)
-        suffix = log_suffix(self.path)
-        known = _writer_suffixes()
-        if suffix not in known:
-            raise CanLogError(
-                f"CAN log {str(self.path)!r}: unknown format {suffix or '(no suffix)'!r}; "
-                f"python-can writes {', '.join(known)} (optionally + .gz)"
-            )
+        suffix = check_log_path(self.path)
         if not hasattr(network, "add_listener"):
             raise TypeError(f"CanLog needs a CanNetwork with add_listener(), got {type(network).__name__}")
         try:
