@@ -158,19 +158,20 @@ class _Sampler:
         self.rows.append(row)
 
     def run_until(self, t_end: float, t0: float, dt: float) -> None:
-        """Sample until ``t_end`` (time base), one sweep every ``dt`` s (0: back to back)."""
+        """Sample until ``t_end`` (time base), a sweep starting ``dt`` s after the previous one's
+        start (back to back when a sweep takes longer, or ``dt`` = 0)."""
         H = self.H
         while True:
             now = timebase.now(H)
             if now >= t_end:
                 return
-            self.sample(t0)
-            if dt > 0:
-                due = t0 + len(self.tt) * dt
-                now = timebase.now(H)
-                wait = min(due, t_end) - now
+            if dt > 0 and self.tt:
+                wait = min(t0 + self.tt[-1] + dt, t_end) - now
                 if wait > 0:
                     timebase.sleep(H, wait)
+                    if timebase.now(H) >= t_end:
+                        return
+            self.sample(t0)
 
     def result(self) -> TrajData:
         if self.failed:
