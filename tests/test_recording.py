@@ -253,6 +253,39 @@ def test_ctrl_c_inside_the_clock_leaves_a_readable_file(tmp_path):
     assert len(t) == rec.samples == 16 and t[-1] == pytest.approx(0.3)
 
 
+def test_real_ctrl_c_and_forgotten_close_leave_readable_files(tmp_path):
+    """A separate process records without ``with``/``close`` and gets a real SIGINT mid-run: the
+    uncaught KeyboardInterrupt ends the interpreter, ``atexit`` closes the recorder."""
+    import signal
+    import subprocess
+    import sys
+
+    path = tmp_path / "sigint.rrd"
+    script = (
+        "import sys\n"
+        "from humanoid_twin.twin import Twin\n"
+        "from humanoid_twin.recording import Recorder\n"
+        "twin = Twin(seed=0)\n"
+        f"rec = Recorder({str(path)!r}, twin, chunk_s=0.5)\n"
+        "twin.run_for(0.3)\n"
+        "print('ready', flush=True)\n"
+        "while True:\n"
+        "    twin.run_for(0.1)\n"
+    )
+    proc = subprocess.Popen([sys.executable, "-c", script], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True)
+    try:
+        assert proc.stdout.readline().strip() == "ready"
+        proc.send_signal(signal.SIGINT)
+        _, err = proc.communicate(timeout=30)
+    finally:
+        proc.kill()
+    assert "KeyboardInterrupt" in err
+    verify_rrd(path)
+    t, _ = read_rrd_scalars(path, "robot/trunk_tilt_deg")
+    assert len(t) >= 16 and np.all(np.diff(t) == pytest.approx(0.02))     # every row up to the stop
+
+
 def test_recorder_rejects_bad_input(tmp_path):
     with Twin(seed=0) as twin:
         with pytest.raises(ValueError, match=r"\.rrd"):
