@@ -21,6 +21,7 @@ from humanoid_twin.recording import (
     CanLogError,
     Recorder,
     RrdReadError,
+    check_log_path,
     decode_can_log,
     read_can_log,
     read_rrd_entities,
@@ -29,7 +30,6 @@ from humanoid_twin.recording import (
     rrd_has_blueprint,
     verify_rrd,
 )
-from humanoid_twin.recording.can_log import check_log_path
 from humanoid_twin.twin import Twin
 
 DURATION_US = 3_000_000
@@ -300,6 +300,7 @@ def test_recorder_rejects_bad_input(tmp_path):
             Recorder(tmp_path / "run.rrd", twin, chunk_s=float("nan"))
         with pytest.raises(ValueError, match="smaller chunk_s"):
             Recorder(tmp_path / "run.rrd", twin, chunk_s=3600)
+    assert not (tmp_path / "run.rrd").exists()      # nothing created by a refused recorder
     with pytest.raises(FileNotFoundError):
         read_rrd_entities(tmp_path / "nothing.rrd")
     junk = tmp_path / "junk.rrd"

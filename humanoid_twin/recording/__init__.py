@@ -16,6 +16,7 @@ from humanoid_twin.recording.can_log import (
     CanLog,
     CanLogError,
     DecodedFrame,
+    check_log_path,
     decode_can_log,
     read_can_log,
 )
@@ -36,6 +37,7 @@ __all__ = [
     "CanLog",
     "CanLogError",
     "DecodedFrame",
+    "check_log_path",
     "read_can_log",
     "decode_can_log",
     "RrdReadError",

@@ -169,8 +169,14 @@ class Recorder:
                 raise ValueError(f"SCU {s!r} is not a board of this twin (it has {sorted(twin.slaves)})")
         if len(set(self.scus)) != len(self.scus):
             raise ValueError(f"scus has duplicates: {self.scus}")
-        self.path = _check_path(path)
+        rows = max(1, round(chunk_s * US_PER_S / period_us))
+        if rows > _MAX_CHUNK_ROWS:
+            raise ValueError(
+                f"chunk_s={chunk_s} s at period_us={period_us} buffers {rows} rows; at most "
+                f"{_MAX_CHUNK_ROWS} (memory): use a smaller chunk_s"
+            )
         self.twin = twin
+        self._rows = rows
         self.period_us = period_us
         self.app_id = app_id
         self.samples = 0
@@ -178,16 +184,11 @@ class Recorder:
         self.wall_s = 0.0
         self._closed = False
         self._t0_us = twin.clock.now_us
-        self._rows = max(1, round(chunk_s * US_PER_S / period_us))
-        if self._rows > _MAX_CHUNK_ROWS:
-            raise ValueError(
-                f"chunk_s={chunk_s} s at period_us={period_us} buffers {self._rows} rows; at most "
-                f"{_MAX_CHUNK_ROWS} (memory): use a smaller chunk_s"
-            )
         self._n = 0
 
         self._layout()
         self._alloc()
+        self.path = _check_path(path)          # the last check, the first thing created
         self.rec = rr.RecordingStream(app_id, recording_id=uuid.uuid4())
         bp = default_blueprint(self.scus, [p for p, _ in self._master_groups]) if blueprint else None
         try:
@@ -195,7 +196,11 @@ class Recorder:
         except RuntimeError as exc:
             raise OSError(f"cannot write the recording {str(self.path)!r}: {exc}") from exc
         atexit.register(self.close)
-        self._log_static()
+        try:
+            self._log_static()
+        except BaseException:
+            self.close()
+            raise
         twin.every(period_us, self.sample, twin.clock.now_us)
         self.wall_s += time.perf_counter() - t_start
 
