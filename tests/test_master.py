@@ -178,6 +178,7 @@ def test_invalid_requests_get_fc_and_change_nothing(rig: Rig, frame: bytes) -> N
     assert rig.ask(frame) == echo(frame, rs232.MESSAGE_INVREQ)
     assert snapshot() == before
     assert rig.master.stats()["serial_frames_invalid"] == 1
+    assert rig.master.usart.last_invalid
 
 
 def test_master_test_message(rig: Rig) -> None:
@@ -455,3 +456,97 @@ def test_integrity_of_database_accessors() -> None:
         db.actuation(0)
     with pytest.raises(ValueError, match="1..8"):
         db.sensor(9)
+
+
+# --- with the real Slaves and the real plant ---------------------------------------------------------
+
+
+class FullRig(Rig):
+    """The Master with the 8 real Slave boards on the real plant (MuJoCo)."""
+
+    PHASES_US = (2_750, 5_500, 8_250, 11_000, 13_750, 16_500, 19_250, 2_000)
+
+    def __init__(self) -> None:
+        from humanoid_twin.plant import Plant
+        from humanoid_twin.slave.slave import Slave
+
+        super().__init__()
+        self.plant = Plant(seed=0)
+        self.slaves = {
+            k: Slave(k, self.clock, self.plant, self.net, phase_us=self.PHASES_US[k - 1]) for k in range(1, 9)
+        }
+
+    def ask(self, frame: bytes, wait_us: int = ANSWER_US + 200) -> bytes:
+        out = super().ask(frame, wait_us)
+        self.plant.advance_to(self.clock.now_us)
+        return out
+
+    def run_for(self, us: int) -> None:
+        self.clock.run_for(us)
+        self.plant.advance_to(self.clock.now_us)
+
+
+@pytest.fixture(scope="module")
+def full() -> FullRig:
+    """One shared run: PWM on and positions for the two legs, 3 s of virtual time."""
+    r = FullRig()
+    canstatus = req(Op.MASTER, 0, rs232.PARAM_CANSTATUS)
+    r.masks = []
+    for _ in range(12):                      # 12 CAN status readouts, one every ~10 ms
+        r.masks.append(rs232.decode_response(r.ask(canstatus)).values)
+        r.run_for(9_000)
+    for k, refs in ((1, (-5, 10, 20)), (2, (5, -10, 30))):
+        assert r.ask(req(Op.APPLY_JOINT, k, rs232.PARAM_POSITION, *(rs232.s8(x) for x in refs)))[0] == 0xFB
+        assert r.ask(req(Op.APPLY_JOINT, k, rs232.PARAM_SPECIAL, 1, 0, 0))[0] == 0xFB
+    r.run_for(3_000_000)
+    return r
+
+
+def test_all_eight_slaves_answer_through_the_schedule(full: FullRig) -> None:
+    union = 0
+    for errstate, tec, rec, mask in full.masks:
+        assert (errstate, tec, rec) == (0, 0, 0)
+        union |= mask
+    assert union == 0xFF, "every slave must show up in the CAN status"
+    db = full.master.db
+    rounds = db.counters.rounds
+    assert rounds >= 3_000_000 // ROUND_US
+    for k in range(1, 9):
+        s = db.sensors[k]
+        assert s.rounds_answered + s.rounds_missed == rounds
+        # silent only when the Master's visit falls in the slave's 2 ms PWM window (slide 29):
+        # at most 1 round in 5 with an 8 ms round and a 20 ms PWM period
+        assert s.rounds_missed <= rounds // 5 + 1, (k, s.rounds_missed, rounds)
+    assert db.counters.can_rx_rejected == 0 and db.counters.can_tx_refused == 0
+
+
+def test_legs_reach_the_requested_positions_read_back_over_rs232(full: FullRig) -> None:
+    for k, refs in ((1, (-5, 10, 20)), (2, (5, -10, 30))):
+        resp = rs232.decode_response(full.ask(req(Op.READ_SENSORS, k, rs232.PARAM_POSITION)))
+        pos = [rs232.from_s8(v) for v in resp.values[:3]]
+        status = cf.parse_status_byte(resp.values[3])
+        assert status.pwm and status.calib, f"SCU {k} status {resp.values[3]:#04x}"
+        assert all(abs(p - r) <= 2 for p, r in zip(pos, refs, strict=True)), (k, pos, refs)
+        forces = rs232.decode_response(full.ask(req(Op.READ_SENSORS, k, rs232.PARAM_SPECIAL))).values
+        assert all(v > 0 for v in forces), f"a standing foot loads its 4 sensors: {forces}"
+    # a hip board with PWM off is limp but measured and reported
+    resp = rs232.decode_response(full.ask(req(Op.READ_SENSORS, 3, rs232.PARAM_POSITION)))
+    assert not cf.parse_status_byte(resp.values[3]).pwm
+
+
+def test_calibration_request_round_trip_with_a_real_slave(full: FullRig) -> None:
+    a = full.master.db.actuators[1]
+    assert full.ask(req(Op.APPLY_JOINT, 1, rs232.PARAM_SPECIAL, 1, 1, 0))[0] == 0xFB
+    assert a.calib
+    full.run_for(100_000)
+    status = rs232.decode_response(full.ask(req(Op.READ_SENSORS, 1, rs232.PARAM_POSITION))).values[3]
+    assert not status & 0x40, "the slave reports 'calibrating' after the request"
+    assert a.calib, "the Master keeps asking while the slave calibrates"
+    full.run_for(3_000_000)                  # 2 s settle + 25 samples, seed 000 SERVO calibration
+    status = rs232.decode_response(full.ask(req(Op.READ_SENSORS, 1, rs232.PARAM_POSITION))).values[3]
+    assert status & 0x40, "calibration done"
+    assert not a.calib, "the Master cleared its Calib flag"
+    full.drain()
+    full.run_for(ROUND_US)
+    act1 = [bytes(m.data) for m in full.drain() if m.arbitration_id == cf.can_id(0, 1, 0, cf.OP_ACTUATION)]
+    assert act1 and cf.parse_control_byte(act1[-1][6])[:2] == (True, False)

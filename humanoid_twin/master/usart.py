@@ -72,6 +72,7 @@ class Usart:
         self.tx_buf = bytearray(FRAME_LEN)   # the response being built / sent
         self.tx_len = 0
         self.tx_pos = 0
+        self.last_invalid: str | None = None  # why the last FC answer was given (rs232.invalid_reason)
 
     # --- table 2: device drivers -----------------------------------------------------------
     def usartInit(self) -> None:
@@ -205,6 +206,7 @@ class Usart:
         frame = bytes(self.ext_buf)
         req = Request.decode(frame)
         if not rs232.is_valid_request(req):
+            self.last_invalid = rs232.invalid_reason(req)
             self.db.counters.serial_frames_invalid += 1
             self.usartSendStatus(MESSAGE_INVREQ)
             return
