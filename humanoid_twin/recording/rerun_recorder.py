@@ -209,7 +209,7 @@ class Recorder:
         """The scalar entities, in the exact order :meth:`sample` appends their values."""
         twin = self.twin
         plant = twin.plant
-        for attr in ("truth", "body_poses", "geometry", "servo_angle_deg", "advance_to"):
+        for attr in ("truth", "body_poses", "geometry", "servo_angle_deg", "advance_to", "tilt_deg"):
             if not hasattr(plant, attr):
                 raise RecorderError(f"the twin's plant has no {attr}(): cannot record ground truth")
         self._slaves = [(s, twin.slaves[s]) for s in self.scus]
