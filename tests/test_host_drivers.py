@@ -18,6 +18,8 @@ from humanoid_twin.host import (
     applyjoint,
     calccop,
     calibcom,
+    controller,
+    controller_off,
     cop_acquire,
     cop_realtime,
     exe_traj,
@@ -143,6 +145,23 @@ def test_power_on_switches_pwm_on_and_waits_for_the_calibration(twin):
     status = power_on(H, scus=(1, 2))
     assert all(s & (STATUS_PWM | STATUS_CALIB) == STATUS_PWM | STATUS_CALIB for s in status.values())
     assert now(H) - t0 >= 2.0                                  # the Slave waits 2 s + 25 ticks
+    # a recalibration request: done only once the Slave has been seen running it again
+    t0 = now(H)
+    status = power_on(H, scus=(1,), calibrate=True)
+    assert status[1] & STATUS_CALIB and now(H) - t0 >= 2.0
+
+
+def test_controller_and_controller_off_set_every_board(twin):
+    H = twin.open_port()
+    controller(H)
+    db = twin.master.db.actuators
+    for scu in (1, 2, 3, 4):
+        assert db[scu].type == [1, 1, 1] and db[scu].ki == [1, 1, 1] and db[scu].kp == [0, 0, 0]
+    assert db[5].type == [0, 0, 0]
+    controller(H, [[3, 4, 5]] * 3, control=3, scus=(2,))
+    assert db[2].type == [3, 3, 3] and db[2].ki == [3, 3, 3] and db[2].kd == [5, 5, 5]
+    controller_off(H)
+    assert all(db[scu].type == [0, 0, 0] for scu in range(1, 9))
 
 
 # --- retries (figs. 18-20) --------------------------------------------------------------------
