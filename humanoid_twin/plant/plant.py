@@ -204,11 +204,14 @@ class Plant:
             names = [m.key(i).name for i in range(m.nkey)]
             raise PlantInputError(f"unknown keyframe {keyframe!r}; the model has {names}")
         mujoco.mj_resetDataKeyframe(m, self.data, k)
+        self._epoch = getattr(self, "_epoch", 0) + 1
+        self._truth_key: tuple | None = None
         self.data.time = 0.0
         self.t_us = 0
         for a in range(m.nu):
             self._set_powered(a, False)
         self._tilt_profile = None
+        self._tilt_grid_us: int | None = None
         self._apply_tilt(0.0)
         self._pot_rng = np.random.default_rng(self._s_pot)
         self._force_rng = np.random.default_rng(self._s_force)
@@ -219,8 +222,9 @@ class Plant:
     def advance_to(self, t_us: int) -> None:
         """Run the physics steps due up to ``t_us`` (never past it) in one ``mj_step`` call.
 
-        The platform tilt profile, if any, is evaluated at the start of the call (and at least
-        every 10 ms of a long call).
+        The platform tilt profile, if any, is evaluated on a fixed 10 ms grid of physics time
+        (the tilt of ``[g, g + 10 ms)`` is ``fn(g)``), so where the callers split the stepping
+        (a recorder, a monitor) does not change the physics.
         """
         due = t_us - self.t_us
         if due < 0:
@@ -232,12 +236,16 @@ class Plant:
             mujoco.mj_step(self.model, self.data, nstep=k)
             self.t_us += k * self.timestep_us
             return
-        chunk = max(1, _TILT_PROFILE_CHUNK_US // self.timestep_us)
+        grid = _TILT_PROFILE_CHUNK_US
+        ts = self.timestep_us
         while k > 0:
-            n = min(k, chunk)
-            self._apply_tilt(self._tilt_profile(self.t_us / 1e6))
+            g = self.t_us - self.t_us % grid
+            if self._tilt_grid_us != g:
+                self._apply_tilt(self._tilt_profile(g / 1e6))
+                self._tilt_grid_us = g
+            n = min(k, max(1, -(-(g + grid - self.t_us) // ts)))
             mujoco.mj_step(self.model, self.data, nstep=n)
-            self.t_us += n * self.timestep_us
+            self.t_us += n * ts
             k -= n
 
     # --- the platform -----------------------------------------------------------------------------
@@ -251,6 +259,7 @@ class Plant:
         if fn is not None and not callable(fn):
             raise PlantInputError(f"tilt profile must be a callable t_s -> deg, got {fn!r}")
         self._tilt_profile = fn
+        self._tilt_grid_us = None
 
     @property
     def tilt_deg(self) -> float:
@@ -414,8 +423,17 @@ class Plant:
         """Ground truth of the current state.
 
         Pad forces and CoPs come from the MuJoCo contact forces of the pad/ground contacts (their
-        normal component, as ``mj_contactForce`` gives it), not from the touch sensors.
+        normal component, as ``mj_contactForce`` gives it), not from the touch sensors. Computed
+        once per physics instant (the monitor and the recorder ask at the same instants).
         """
+        key = (self.t_us, self._tilt_deg, self._epoch, self.data.qpos.tobytes(), self.data.qvel.tobytes())
+        if self._truth_key == key:
+            return self._truth_cached
+        self._truth_cached = self._compute_truth()
+        self._truth_key = key
+        return self._truth_cached
+
+    def _compute_truth(self) -> GroundTruth:
         d = self.data
         trunk_z = d.xmat[self._trunk].reshape(3, 3)[:, 2]
         tilt = math.degrees(math.acos(max(-1.0, min(1.0, float(trunk_z[2])))))
