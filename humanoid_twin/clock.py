@@ -19,6 +19,8 @@ from collections.abc import Callable
 
 US_PER_S = 1_000_000
 
+_heappush = heapq.heappush
+
 Callback = Callable[[], None]
 
 
@@ -42,8 +44,8 @@ class Clock:
         """Run ``callback`` at absolute virtual time ``t_us`` (not before ``now_us``)."""
         if t_us < self.now_us:
             raise ValueError(f"cannot schedule in the past: {t_us} < {self.now_us}")
-        self._seq += 1
-        heapq.heappush(self._queue, (t_us, self._seq, callback))
+        self._seq = seq = self._seq + 1
+        _heappush(self._queue, (t_us, seq, callback))
 
     def after(self, delay_us: int, callback: Callback) -> None:
         """Run ``callback`` ``delay_us`` microseconds from now."""
@@ -53,14 +55,18 @@ class Clock:
         """Run ``callback`` every ``period_us``, first at ``first_us`` (default: one period from now)."""
         if period_us <= 0:
             raise ValueError("period must be positive")
-        due = [self.now_us + period_us if first_us is None else first_us]
+        due = self.now_us + period_us if first_us is None else first_us
+        queue = self._queue
 
         def tick() -> None:
+            nonlocal due
             callback()
-            due[0] += period_us
-            self.schedule(due[0], tick)
+            due += period_us
+            # self.schedule, inlined (due > now: no past check needed)
+            self._seq = seq = self._seq + 1
+            _heappush(queue, (due, seq, tick))
 
-        self.schedule(due[0], tick)
+        self.schedule(due, tick)
 
     def next_event_us(self) -> int | None:
         """Time of the next pending event, or None."""

@@ -40,7 +40,7 @@ class _Wire(Protocol):
 class _Medium:
     """All TwinBus members of one channel (the electrical bus)."""
 
-    __slots__ = ("channel", "members", "wire", "_routes")
+    __slots__ = ("channel", "members", "wire", "_routes", "_std_routes")
 
     def __init__(self, channel: str) -> None:
         self.channel = channel
@@ -48,9 +48,12 @@ class _Medium:
         self.wire: _Wire | None = None
         # (arbitration_id, is_extended) -> members whose filters accept it
         self._routes: dict[tuple[int, bool], tuple[TwinBus, ...]] = {}
+        # the same for standard (11-bit) IDs, keyed by the ID alone (no tuple per frame)
+        self._std_routes: dict[int, tuple[TwinBus, ...]] = {}
 
     def invalidate(self) -> None:
         self._routes.clear()
+        self._std_routes.clear()
 
     def route(self, arbitration_id: int, is_extended: bool) -> tuple[TwinBus, ...]:
         key = (arbitration_id, is_extended)
@@ -59,6 +62,8 @@ class _Medium:
             r = tuple(b for b in self.members
                       if not b._muted and b._accepts(arbitration_id, is_extended))
             self._routes[key] = r
+            if not is_extended:
+                self._std_routes[arbitration_id] = r
         return r
 
 
@@ -101,6 +106,15 @@ def release_medium(medium: _Medium) -> None:
         medium.wire = None
         if not medium.members and _MEDIA.get(medium.channel) is medium:
             del _MEDIA[medium.channel]
+
+
+def _copy(msg: can.Message) -> can.Message:
+    return can.Message(timestamp=msg.timestamp, arbitration_id=msg.arbitration_id,
+                       is_extended_id=msg.is_extended_id, is_remote_frame=msg.is_remote_frame,
+                       is_error_frame=msg.is_error_frame, channel=msg.channel, dlc=msg.dlc,
+                       data=bytearray(msg.data), is_fd=msg.is_fd, is_rx=msg.is_rx,
+                       bitrate_switch=msg.bitrate_switch,
+                       error_state_indicator=msg.error_state_indicator)
 
 
 def active_channels() -> list[str]:
@@ -208,7 +222,10 @@ class TwinBus(BusABC):
     def _deliver(self, msg: can.Message) -> None:
         """Hand ``msg`` (already on the wire) to every accepting member of the channel."""
         medium = self._medium
-        route = medium._routes.get((msg.arbitration_id, msg.is_extended_id))
+        if msg.is_extended_id:
+            route = medium._routes.get((msg.arbitration_id, True))
+        else:
+            route = medium._std_routes.get(msg.arbitration_id)
         if route is None:
             route = medium.route(msg.arbitration_id, msg.is_extended_id)
         for bus in route:
@@ -218,7 +235,9 @@ class TwinBus(BusABC):
             if cb is not None:
                 cb(msg)
             else:
-                bus._queue.append(msg)
+                # a queueing reader (a tool) reads later: give it its own copy, the sender may
+                # reuse its message object once the frame is done (the twin's boards do)
+                bus._queue.append(_copy(msg))
                 if bus._waiting:
                     with bus._cond:
                         bus._cond.notify()
