@@ -47,6 +47,7 @@ class MasterCan:
         self.db = db
         self.drivers = CanDrivers(network, name)
         self.rejected: list[tuple[int, int, str]] = []  # (t_us, id, reason), the last few rejected frames
+        self._tx_msgs: dict[int, tuple[can.Message, bytes]] = {}   # scu * 2 + index -> (message, payload)
 
     def canInit(self, on_rx: Callable[[can.Message], None]) -> None:
         """``canInit`` (table 4): CAN peripheral with the Master's acceptance filters (slide 23:
@@ -69,18 +70,37 @@ class MasterCan:
             if p is None:
                 kd3 = a.kd[2]
                 p = a.payload1 = pack_actuation1(a.ref, a.speed, control_byte(a.pwm, a.calib, a.type), kd3)
-            msg = _Message(arbitration_id=ACTUATION_IDS[scu][0], is_extended_id=False, data=p, is_rx=False)
-            ok = self.drivers.myCANSendMessage0(msg)
+            ok = self.drivers.myCANSendMessage0(self._message(scu, 0, p))
         else:
             p = a.payload2
             if p is None:
                 kd = a.kd
                 p = a.payload2 = pack_actuation2(a.ki, a.kp, kd[0], kd[1])
-            msg = _Message(arbitration_id=ACTUATION_IDS[scu][1], is_extended_id=False, data=p, is_rx=False)
-            ok = self.drivers.myCANSendMessage1(msg)
+            ok = self.drivers.myCANSendMessage1(self._message(scu, 1, p))
         if not ok:
             c.can_tx_refused += 1
         return ok
+
+    def _message(self, scu: int, index: int, payload: bytes) -> can.Message:
+        """The actuation packet ``index`` of ``scu`` as a message, reused from its last request
+        (loading a TX buffer) when the controller holds none of the Master's frames any more."""
+        key = scu * 2 + index
+        entry = self._tx_msgs.get(key)
+        ctl = self.drivers.controller
+        if entry is None or ctl is None or ctl.pending or ctl.state == "bus-off":
+            msg = _Message(arbitration_id=ACTUATION_IDS[scu][index], is_extended_id=False, data=payload,
+                           is_rx=False)
+            self._tx_msgs[key] = (msg, payload)
+            return msg
+        msg, loaded = entry
+        if loaded is not payload:
+            msg.data[:] = payload
+            msg.dlc = len(payload)
+            self._tx_msgs[key] = (msg, payload)
+        msg.timestamp = 0.0
+        msg.channel = None
+        msg.is_rx = False
+        return msg
 
     def canAbort(self) -> None:
         """Abort a pending actuation packet (slide 27, slots 1 and 3: TXABT)."""

@@ -35,7 +35,6 @@ from humanoid_twin.protocol.canframes import (
     pack_sensors1,
     pack_sensors2,
     slave_filters,
-    split_id,
     status_byte,
     unpack_actuation1,
     unpack_actuation2,
@@ -63,6 +62,9 @@ class SlaveCan:
         "payload",
         "calib_request",
         "_sensor_ids",
+        "_rx_index",
+        "_tx_msgs",
+        "_isr_send_cb",
         "_tx_index",
         "_tx_due_us",
         "rx_packets",
@@ -82,6 +84,12 @@ class SlaveCan:
         self.controller: Any = None
         self.node_name = f"slave{address}"
         self._sensor_ids = (can_id(address, MASTER, 0, OP_SENSORS), can_id(address, MASTER, 1, OP_SENSORS))
+        # the two actuation identifiers addressed to this board -> packet index: the destination
+        # and operation check of lowISR in one dict lookup
+        self._rx_index = {can_id(MASTER, address, i, OP_ACTUATION): i for i in (0, 1)}
+        # the sensor packets' messages (TXB0/TXB1), built once and reloaded for each answer
+        self._tx_msgs: list[can.Message | None] = [None, None]
+        self._isr_send_cb = self._isr_send
         self.payload: list[bytes] = [bytes(8), bytes(8)]   # Sensors 1 / Sensors 2, ready to send
         self.calib_request = False       # Calib bit 0 -> 1 seen (handled by the main loop)
         self._tx_index = 0
@@ -104,11 +112,10 @@ class SlaveCan:
     # -- interrupt ------------------------------------------------------------------------------
     def lowISR(self, msg: can.Message) -> None:
         """``lowISR`` (table 17, fig. 9, slide 29): the CAN receive interrupt (RXBnIF)."""
-        arb = msg.arbitration_id
-        if (arb >> 3) & 0x0F != self.address or arb & 0x03 != OP_ACTUATION or arb >> 7 != MASTER:
+        index = self._rx_index.get(msg.arbitration_id)
+        if index is None:                          # not for this board, or not an actuation
             self.rx_ignored += 1
             return
-        _src, _dst, index, _op = split_id(arb)
         self.controller.abort()                    # abort the previous TX
         self._tx_due_us = -1                       # and an answer still in the ISR
         if not self.receiveCanMessage(index, msg.data):
@@ -119,7 +126,7 @@ class SlaveCan:
             return
         self._tx_index = index
         self._tx_due_us = now + ISR_LATENCY_US
-        self.clock.schedule(self._tx_due_us, self._isr_send)
+        self.clock.schedule(self._tx_due_us, self._isr_send_cb)
 
     def _isr_send(self) -> None:
         if self.clock.now_us != self._tx_due_us:   # superseded by a later packet
@@ -177,10 +184,23 @@ class SlaveCan:
         """``sendCanMessage`` (table 18): the sensor packet ``index`` (0: positions, velocities,
         status; 1: currents, force sensors) to the Master."""
         self.tx_packets += 1
-        msg = can.Message(
-            arbitration_id=self._sensor_ids[index], data=self.payload[index], is_extended_id=False
-        )
-        self.controller.send(msg)
+        controller = self.controller
+        msg = self._tx_msgs[index]
+        if msg is None or controller.pending or controller.state == "bus-off":
+            # a new message when the controller may still hold a frame of this board (pending,
+            # or on the wire while bus-off)
+            msg = self._tx_msgs[index] = can.Message(
+                arbitration_id=self._sensor_ids[index], data=self.payload[index], is_extended_id=False
+            )
+        else:
+            # reload the same message (like TXBn): the controller is done with the last frame
+            payload = self.payload[index]
+            msg.data[:] = payload
+            msg.dlc = len(payload)
+            msg.timestamp = 0.0
+            msg.channel = None
+            msg.is_rx = True
+        controller.send(msg)
 
     def checkCan(self) -> bool:
         """``checkCan`` (table 18): if the controller is bus-off, recover it (``clear_status``).
