@@ -19,6 +19,7 @@ for an 8-byte frame (the 0..24 stuff-bit bound is floor((34 + 8n - 1) / 4), Davi
 
 from __future__ import annotations
 
+import re
 from functools import lru_cache
 
 CRC15_POLY = 0x4599
@@ -78,10 +79,49 @@ def count_stuff_bits(bits: list[int]) -> int:
     return stuffed
 
 
+def _crc15_table() -> tuple[int, ...]:
+    table = []
+    for byte in range(256):
+        crc = 0
+        for i in range(8):
+            nxt = ((byte >> (7 - i)) & 1) ^ ((crc >> 14) & 1)
+            crc = (crc << 1) & 0x7FFF
+            if nxt:
+                crc ^= CRC15_POLY
+        table.append(crc)
+    return tuple(table)
+
+
+_CRC15_TABLE = _crc15_table()
+_RUNS = re.compile(r"0+|1+")
+
+
 @lru_cache(maxsize=4096)
 def _frame_bits_cached(arbitration_id: int, data: bytes) -> int:
-    bits = unstuffed_bits(arbitration_id, data)
-    return len(bits) + count_stuff_bits(bits) + TRAILER_BITS
+    # Same result as len(unstuffed_bits) + count_stuff_bits + TRAILER_BITS (tested), ~5x faster:
+    # the CRC byte-wise from a table, the stuff bits counted per run of equal bits.
+    if not 0 <= arbitration_id <= 0x7FF:
+        raise ValueError(f"standard CAN ID must be 0..0x7FF, got {arbitration_id:#x}")
+    n = len(data)
+    if n > 8:
+        raise ValueError(f"a CAN 2.0 data frame carries at most 8 bytes, got {n}")
+    head = (arbitration_id << 7) | n          # SOF ID(11) RTR IDE r0 DLC(4): 19 bits, SOF = 0
+    # CRC with initial value 0 ignores leading zero bits: 5 of them make the header 3 bytes
+    crc = 0
+    table = _CRC15_TABLE
+    for byte in head.to_bytes(3, "big") + data:
+        crc = ((crc << 8) & 0x7FFF) ^ table[((crc >> 7) ^ byte) & 0xFF]
+    width = 34 + 8 * n                        # SOF .. last CRC bit
+    value = (((head << (8 * n)) | int.from_bytes(data, "big")) << 15) | crc
+    # a run of k equal bits (plus a stuff bit carried in from the previous run, which has this
+    # run's value) gets k // 5 stuff bits; the last one carries into the next run when k % 5 == 0
+    stuffed = 0
+    carry = 0
+    for run in _RUNS.findall(format(value, f"0{width}b")):
+        k = len(run) + carry
+        stuffed += k // 5
+        carry = 1 if k % 5 == 0 else 0
+    return width + stuffed + TRAILER_BITS
 
 
 def frame_bits(arbitration_id: int, data: bytes) -> int:
