@@ -121,6 +121,10 @@ class CanController:
 
     def abort(self) -> int:
         """Abort every TX not yet on the wire (TXABT). Returns how many frames were dropped."""
+        if not self._n_pending:
+            # nothing requested: nothing to drop (a frame of ours still on the wire would have
+            # kept _n_pending up, unless we are bus-off, where it cannot be retransmitted anyway)
+            return 0
         return self._net._abort(self)
 
     def clear_status(self) -> None:
