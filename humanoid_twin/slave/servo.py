@@ -7,17 +7,20 @@ PID, fig. 8), ``reactionControl`` (REACTION_CONTROL, proportional CoP law) and
 ``jacobianControl`` (BALANCE_CONTROL, Jacobian-transpose CoP law), table 10; the two balance laws
 give joint *velocities*, turned into positions by ``applyVelocity`` with a velocity limiter.
 
-Fixed-point scales (docs/firmware.md, "SERVO"): every gain is the raw CAN byte (0..255).
+Fixed-point scales (docs/firmware.md, "SERVO"; docs/balance.md): every gain is the raw CAN byte.
 - PID: the command ``u`` is held in 1/16 degree, the error ``e`` in whole degrees, so a gain byte
   ``K`` is ``K/16`` (Q4.4): ``u16(k) = u16(k-1) + KP (e(k)-e(k-1)) + KI e(k) + KD (e(k)-2e(k-1)+e(k-2))``.
-- Velocities are held in 1/256 degree per tick (Q8). REACTION: ``v = KP * e`` with ``e`` in mm,
-  i.e. ``KP/256`` degree per tick per mm. BALANCE: ``v = (KP * (J^T e)) >> 16`` with ``J`` in
-  micrometres per radian and ``e`` in mm (at the straight leg ``J`` is 95.5 mm/rad, so the same
-  byte acts 1.46 times as strongly as in REACTION).
+- Balance laws: ``e = CoP_ref - CoP`` in whole mm from the CoP low-passed once per tick
+  (:data:`COP_FILTER_SHIFT`), zero within the dead band :data:`COP_DEAD_BAND_MM`. The KP byte is
+  read as a signed char (a negative gain moves the foot toward the reference instead of the mass
+  centre: the compliant foot of double support, docs/balance.md) and the KD byte, which the
+  manual's balance laws do not use, is the gain's binary exponent (velocity / 2^KD).
+  REACTION: ``v = KP * e`` in 1/256 degree per tick (``KP/256`` degree per tick per mm).
+  BALANCE: ``v = (KP * (J^T e)) >> 16`` with ``J`` in micrometres per radian (at the straight
+  leg ``J`` is 95.5 mm/rad, so the same byte acts 1.46 times as strongly as in REACTION).
 - ``applyVelocity`` limits ``|v|`` to :data:`VELOCITY_LIMIT_Q8` (1 degree per tick = 50 deg/s)
-  and accumulates it in a Q8 accumulator: the balance offset added to the trajectory reference is
-  ``round(acc / 256)`` degrees, so a velocity of 1/256 degree per tick still moves the int8
-  position after 128 ticks.
+  and accumulates it with 16 fractional bits: the balance offset added to the trajectory
+  reference is ``round(acc / 65536)`` degrees, so slow velocities still move the int8 position.
 """
 
 from __future__ import annotations
@@ -33,7 +36,7 @@ from humanoid_twin.hardware import (
     POT_COUNTS_PER_DEG,
 )
 from humanoid_twin.slave.data import divround, jacobianMatrix
-from humanoid_twin.slave.database import Actuators
+from humanoid_twin.slave.database import Actuators, Control
 
 __all__ = [
     "NO_CONTROL",
@@ -43,6 +46,10 @@ __all__ = [
     "PID_SHIFT",
     "JACOBIAN_SHIFT",
     "VELOCITY_LIMIT_Q8",
+    "COP_FILTER_SHIFT",
+    "COP_DEAD_BAND_MM",
+    "GAIN_SHIFT_MAX",
+    "balance_gain",
     "CALIB_SETTLE_TICKS",
     "CALIB_SAMPLES",
     "calibration_b",
@@ -60,12 +67,32 @@ BALANCE_CONTROL = 3
 PID_SHIFT = 4                # u in 1/16 degree: gain byte K = K/16
 JACOBIAN_SHIFT = 16          # v_q8 = (KP * J^T e) >> 16
 VELOCITY_LIMIT_Q8 = 256      # applyVelocity limiter: 1 degree per tick (50 deg/s)
+# Additions to the manual's balance laws (docs/balance.md, "Interpretations"):
+COP_FILTER_SHIFT = 3         # CoP low-pass f += (CoP - f) >> 3: time constant 8 ticks (160 ms)
+COP_DEAD_BAND_MM = 1         # |e| <= 1 mm (the CoP's resolution) gives no action
+GAIN_SHIFT_MAX = 15          # KD byte = the balance gain's binary exponent, 0..15
+_V_MAX16 = VELOCITY_LIMIT_Q8 << 8
 
 CALIB_SETTLE_TICKS = 100     # "esperar dois segundos" = 100 PWM periods
 CALIB_SAMPLES = 25           # "25 medidas (25 períodos de PWM)"
 
 _U_MAX = POS_MAX_DEG << PID_SHIFT
 _U_MIN = POS_MIN_DEG << PID_SHIFT
+
+
+def balance_gain(control: Control) -> tuple[int, int]:
+    """The gain of a balance law (REACTION, BALANCE) from a servo's gain bytes: ``(KP, shift)``
+    with KP the KP byte read as a signed char (-128..127: a negative gain moves the foot, not
+    the mass centre; docs/balance.md) and ``shift`` the KD byte (0..:data:`GAIN_SHIFT_MAX`),
+    the gain's binary exponent: the law's velocity is divided by ``2**shift``. KD = 0 gives
+    the scales of the module docstring."""
+    kp = control.kp
+    if kp > 127:
+        kp -= 256
+    shift = control.kd
+    if shift > GAIN_SHIFT_MAX:
+        shift = GAIN_SHIFT_MAX
+    return kp, shift
 
 
 def calibration_b(pos_master: int, adc_sum: int, n: int = CALIB_SAMPLES) -> int:
@@ -183,6 +210,8 @@ class ServoControl:
         "fresh",
         "acc",
         "cop_ref",
+        "cop_f",
+        "cop_primed",
         "last_v",
         "last_jacobian",
     )
@@ -200,8 +229,10 @@ class ServoControl:
         self.e1: list[int] = [0] * N_SERVOS
         self.e2: list[int] = [0] * N_SERVOS
         self.fresh: list[bool] = [True] * N_SERVOS
-        self.acc: list[int] = [0] * N_SERVOS         # balance offset accumulator, 1/256 degree
+        self.acc: list[int] = [0] * N_SERVOS         # balance offset accumulator, 1/65536 degree
         self.cop_ref: list[int] = [0, 0]             # CoP reference (mm, foot frame): foot centre
+        self.cop_f: list[int] = [0, 0]               # filtered CoP, 1/256 mm
+        self.cop_primed = False
         self.last_v: list[int] = [0] * N_SERVOS      # last velocity applied (Q8), for recording
         self.last_jacobian: tuple | None = None
 
@@ -243,8 +274,15 @@ class ServoControl:
         the positions to apply are left in ``output``.
 
         ``measured``: positions (whole degrees), ``cop_x/cop_y``: the foot's CoP (mm) and
-        ``loaded`` whether it is meaningful, ``types``: the control type of each servo.
+        ``loaded`` whether it is meaningful, ``types``: the control type of each servo. On a
+        leg board the CoP is filtered every tick (:meth:`filterCoP`), whatever the types, so a
+        balance law switched on later starts from a settled value.
         """
+        ex = ey = 0
+        if self.has_foot:
+            self.filterCoP(cop_x, cop_y, loaded)
+            if loaded:
+                ex, ey = self.copError()
         jacobian_done = False
         for i in range(N_SERVOS):
             t = types[i]
@@ -261,12 +299,12 @@ class ServoControl:
                 self.openloopControl(i)
             elif t == REACTION_CONTROL:
                 if i < 2:
-                    self.reactionControl(i, cop_x, cop_y, loaded)
+                    self.reactionControl(i, ex, ey, loaded)
                 else:
                     self.openloopControl(i)
             else:  # BALANCE_CONTROL
                 if not jacobian_done:
-                    self.jacobianControl(measured, cop_x, cop_y, loaded, types)
+                    self.jacobianControl(measured, ex, ey, loaded, types)
                     jacobian_done = True
 
     def openloopControl(self, i: int) -> None:
@@ -293,63 +331,105 @@ class ServoControl:
         self.e1[i] = e
         self.output[i] = (u + 8) >> PID_SHIFT
 
-    def reactionControl(self, i: int, cop_x: int, cop_y: int, loaded: bool) -> None:
-        """``reactionControl`` (table 10): ``v_x = KPx e_x`` on the foot lateral joint (servo
-        0), ``v_y = KPy e_y`` on the foot front joint (servo 1), ``e = CoP_ref - CoP_meas`` in
-        mm; KPx, KPy = the KP bytes of servos 0 and 1. The sign of each law is the sign of the
-        joint's lever on the mass centre at the straight leg (``signs``), so that a positive
-        error moves the mass centre, and the CoP, toward the reference. No action while the
-        foot is unloaded."""
+    def filterCoP(self, cop_x: int, cop_y: int, loaded: bool) -> None:
+        """The CoP seen by the balance laws: ``calcCoP``'s value low-passed once per tick,
+        ``f += (CoP - f) >> COP_FILTER_SHIFT`` in 1/256 mm (docs/balance.md: the body rocking
+        on the servos' stiffness at ~3 Hz must not reach the integrating laws). The filter is
+        primed with the first loaded sample and forgotten while the foot is unloaded."""
         if not loaded:
-            self.applyVelocity(i, 0)
+            self.cop_primed = False
             return
-        kp = self.actuators.control[i].kp
+        x8 = cop_x << 8
+        y8 = cop_y << 8
+        if not self.cop_primed:
+            self.cop_f[0] = x8
+            self.cop_f[1] = y8
+            self.cop_primed = True
+            return
+        self.cop_f[0] += (x8 - self.cop_f[0]) >> COP_FILTER_SHIFT
+        self.cop_f[1] += (y8 - self.cop_f[1]) >> COP_FILTER_SHIFT
+
+    def copError(self) -> tuple[int, int]:
+        """``e = CoP_ref - CoP_med`` in whole millimetres from the filtered CoP, with the dead
+        band: an error within +-:data:`COP_DEAD_BAND_MM` is zero."""
+        ex = self.cop_ref[0] - ((self.cop_f[0] + 128) >> 8)
+        ey = self.cop_ref[1] - ((self.cop_f[1] + 128) >> 8)
+        if -COP_DEAD_BAND_MM <= ex <= COP_DEAD_BAND_MM:
+            ex = 0
+        if -COP_DEAD_BAND_MM <= ey <= COP_DEAD_BAND_MM:
+            ey = 0
+        return ex, ey
+
+    def reactionControl(self, i: int, ex: int, ey: int, loaded: bool) -> None:
+        """``reactionControl`` (table 10): ``v_x = KPx e_x`` on the foot lateral joint (servo
+        0), ``v_y = KPy e_y`` on the foot front joint (servo 1), ``e = CoP_ref - CoP_med`` in
+        mm (:meth:`copError`); KPx, KPy = the KP bytes of servos 0 and 1, read as signed
+        (:func:`balance_gain`, with KD the gain's binary exponent). The sign of each law is the
+        sign of the joint's lever on the mass centre at the straight leg (``signs``), so that a
+        positive gain moves the mass centre, and the CoP, toward the reference; a negative gain
+        moves the foot instead (compliance). No action while the foot is unloaded."""
+        if not loaded:
+            self._apply16(i, 0)
+            return
+        kp, shift = balance_gain(self.actuators.control[i])
         if i == 0:
-            v = self.signs[0] * kp * (self.cop_ref[0] - cop_x)
+            v = self.signs[0] * kp * ex
         else:
-            v = -self.signs[1] * kp * (self.cop_ref[1] - cop_y)
-        self.applyVelocity(i, v)
+            v = -self.signs[1] * kp * ey
+        # velocity in 1/65536 degree per tick: KP/256 degree per tick per mm, / 2^KD
+        self._apply16(i, _shr(v << 8, shift))
 
     def jacobianControl(
-        self, measured: Sequence[int], cop_x: int, cop_y: int, loaded: bool, types: Sequence[int]
+        self, measured: Sequence[int], ex: int, ey: int, loaded: bool, types: Sequence[int]
     ) -> None:
         """``JacobianControl`` (table 10): ``v_j = KP_j (J_1j e_x + J_2j e_y)`` for the foot
         lateral, foot front and knee joints, ``J`` from ``jacobianMatrix`` at the measured
-        positions (DATA), ``e = CoP_ref - CoP_meas`` (mm), ``e_z = 0``. Applied to the servos
-        whose type is BALANCE_CONTROL; no action while the foot is unloaded."""
+        positions (DATA), ``e = CoP_ref - CoP_med`` (mm, :meth:`copError`), ``e_z = 0``.
+        Applied to the servos whose type is BALANCE_CONTROL, with each servo's signed gain
+        (:func:`balance_gain`); no action while the foot is unloaded."""
         if not loaded:
             for i in range(N_SERVOS):
                 if types[i] == BALANCE_CONTROL:
-                    self.applyVelocity(i, 0)
+                    self._apply16(i, 0)
             return
         J = jacobianMatrix(measured[0], measured[1], measured[2], self.signs)
         self.last_jacobian = J
-        ex = self.cop_ref[0] - cop_x
-        ey = self.cop_ref[1] - cop_y
         ctrl = self.actuators.control
+        j0 = J[0]
+        j1 = J[1]
         for i in range(N_SERVOS):
             if types[i] == BALANCE_CONTROL:
-                jte = J[0][i] * ex + J[1][i] * ey
-                v = ctrl[i].kp * jte
-                v = v >> JACOBIAN_SHIFT if v >= 0 else -((-v) >> JACOBIAN_SHIFT)
-                self.applyVelocity(i, v)
+                kp, shift = balance_gain(ctrl[i])
+                # (KP * J^T e) >> 16 in 1/256 degree per tick, i.e. >> 8 in 1/65536
+                self._apply16(i, _shr(kp * (j0[i] * ex + j1[i] * ey), JACOBIAN_SHIFT - 8 + shift))
 
     def applyVelocity(self, i: int, v_q8: int) -> None:
-        """``applyVelocity``: a velocity (1/256 degree per tick) becomes a position increment.
-        The velocity limiter caps ``|v|`` at :data:`VELOCITY_LIMIT_Q8`; the Q8 accumulator keeps
-        the fractions, and is held so that reference + offset stays within -90..90 degrees."""
-        if v_q8 > VELOCITY_LIMIT_Q8:
-            v_q8 = VELOCITY_LIMIT_Q8
-        elif v_q8 < -VELOCITY_LIMIT_Q8:
-            v_q8 = -VELOCITY_LIMIT_Q8
-        self.last_v[i] = v_q8
+        """``applyVelocity``: a velocity (1/256 degree per tick) becomes a position increment
+        (see :meth:`_apply16`, which the balance laws call with 8 more fractional bits)."""
+        self._apply16(i, v_q8 << 8)
+
+    def _apply16(self, i: int, v: int) -> None:
+        """``applyVelocity`` proper, velocity ``v`` in 1/65536 degree per tick. The velocity
+        limiter caps ``|v|`` at :data:`VELOCITY_LIMIT_Q8` / 256 degree per tick; the 16-bit
+        fraction accumulator keeps slow velocities; the offset is held so that reference +
+        offset stays within -90..90 degrees (no wind-up)."""
+        if v > _V_MAX16:
+            v = _V_MAX16
+        elif v < -_V_MAX16:
+            v = -_V_MAX16
+        self.last_v[i] = v >> 8 if v >= 0 else -((-v) >> 8)
         ref = self.reference[i]
-        acc = self.acc[i] + v_q8
-        hi = (POS_MAX_DEG - ref) << 8
-        lo = (POS_MIN_DEG - ref) << 8
+        acc = self.acc[i] + v
+        hi = (POS_MAX_DEG - ref) << 16
+        lo = (POS_MIN_DEG - ref) << 16
         if acc > hi:
             acc = hi
         elif acc < lo:
             acc = lo
         self.acc[i] = acc
-        self.output[i] = ref + ((acc + 128) >> 8)
+        self.output[i] = ref + ((acc + 32768) >> 16)
+
+
+def _shr(v: int, n: int) -> int:
+    """``v / 2^n`` truncated toward zero (C ``/`` by a power of two on a signed value)."""
+    return v >> n if v >= 0 else -((-v) >> n)
