@@ -100,7 +100,7 @@ class Monitor:
         if twin.now_s < self.start_s or not slave.cop_loaded or not slave.calibrated:
             return
         twin.plant.advance_to(twin.clock.now_us)
-        truth = twin.plant.truth().foot_cop_mm.get(foot)
+        truth = twin.plant.foot_cop_mm(foot)
         if truth is None:
             return
         dx = slave.cop_x - truth[0]

@@ -439,33 +439,7 @@ class Plant:
         tilt = math.degrees(math.acos(max(-1.0, min(1.0, float(trunk_z[2])))))
         height = float(d.xpos[self._trunk, 2])
 
-        pad_f = np.zeros(8)
-        foot_sum = np.zeros((2, 2))       # sum of F * (x, y) in each foot frame, mm
-        world_sum = np.zeros(2)
-        contact_pts = np.zeros((0, 2))
-        n = d.ncon
-        if n:
-            con = d.contact
-            geom = con.geom[:n]
-            pid = np.maximum(self._pad_id[geom[:, 0]], self._pad_id[geom[:, 1]])
-            adr = con.efc_address[:n]
-            sel = np.flatnonzero((pid >= 0) & (adr >= 0))
-            if sel.size:
-                fn = self._normal_forces(sel, adr, con.dim[:n])
-                loaded = fn > 0.0
-                sel, fn = sel[loaded], fn[loaded]
-                pid = pid[sel]
-                pos = con.pos[:n][sel]
-                np.add.at(pad_f, pid, fn)
-                for f, foot in enumerate(FOOT_BODIES):
-                    on = pid // 4 == f
-                    if on.any():
-                        s = self._sole_site[foot]
-                        local = (pos[on] - d.site_xpos[s]) @ d.site_xmat[s].reshape(3, 3)
-                        foot_sum[f] = fn[on] @ local[:, :2] * 1000.0
-                world_sum = fn @ pos[:, :2]
-                contact_pts = pos[:, :2]
-        pad_f = pad_f.reshape(2, 4)
+        pad_f, foot_sum, world_sum, contact_pts = self._contact_sums()
         foot_tot = pad_f.sum(axis=1)
         total = float(foot_tot.sum())
         foot_cop = {foot: (foot_sum[f] / foot_tot[f] if foot_tot[f] > C.LOADED_MIN_N else None)
@@ -492,6 +466,46 @@ class Plant:
             total_normal_force_n=total,
             fell=tilt > C.FELL_TILT_DEG or height < C.FELL_HEIGHT_M,
         )
+
+    def _contact_sums(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Pad/ground contacts: pad normal forces (2 x 4, N), per foot sum of F * (x, y) in its
+        foot frame (2 x 2, N mm), sum of F * (x, y) in the world (2,), contact points (k, 2)."""
+        d = self.data
+        pad_f = np.zeros(8)
+        foot_sum = np.zeros((2, 2))       # sum of F * (x, y) in each foot frame, mm
+        world_sum = np.zeros(2)
+        contact_pts = np.zeros((0, 2))
+        n = d.ncon
+        if n:
+            con = d.contact
+            geom = con.geom[:n]
+            pid = np.maximum(self._pad_id[geom[:, 0]], self._pad_id[geom[:, 1]])
+            adr = con.efc_address[:n]
+            sel = np.flatnonzero((pid >= 0) & (adr >= 0))
+            if sel.size:
+                fn = self._normal_forces(sel, adr, con.dim[:n])
+                loaded = fn > 0.0
+                sel, fn = sel[loaded], fn[loaded]
+                pid = pid[sel]
+                pos = con.pos[:n][sel]
+                np.add.at(pad_f, pid, fn)
+                for f, foot in enumerate(FOOT_BODIES):
+                    on = pid // 4 == f
+                    if on.any():
+                        s = self._sole_site[foot]
+                        local = (pos[on] - d.site_xpos[s]) @ d.site_xmat[s].reshape(3, 3)
+                        foot_sum[f] = fn[on] @ local[:, :2] * 1000.0
+                world_sum = fn @ pos[:, :2]
+                contact_pts = pos[:, :2]
+        return pad_f.reshape(2, 4), foot_sum, world_sum, contact_pts
+
+    def foot_cop_mm(self, foot: str) -> np.ndarray | None:
+        """Ground-truth CoP of one foot (foot frame, mm), None when unloaded: the part of
+        :meth:`truth` a per-tick comparison needs, without the rest."""
+        f = FOOT_BODIES.index(foot)
+        pad_f, foot_sum, _, _ = self._contact_sums()
+        tot = pad_f[f].sum()
+        return foot_sum[f] / tot if tot > C.LOADED_MIN_N else None
 
     def _normal_forces(self, sel: np.ndarray, adr: np.ndarray, dim: np.ndarray) -> np.ndarray:
         """Normal force of the contacts ``sel``: with pyramidal cones the sum of the pyramid's
