@@ -51,6 +51,9 @@ class RunOptions:
     tilt: float = 0.0
     seed: int = 0
     progress: bool = True
+    # The ground-truth monitor behind fell / trunk tilt / CoP margin / CoP error. Off only for
+    # scripts/bench.py, which times the twin itself (like recording, it is instrumentation).
+    monitor: bool = True
 
 
 @dataclass
@@ -194,7 +197,8 @@ def run(opts: RunOptions, on_progress: Callable[[float, float], None] | None = N
 
             canlog = CanLog(opts.can_log, twin.network)
         monitor = Monitor(twin)
-        monitor.attach()
+        if opts.monitor:
+            monitor.attach()
         H = twin.open_port()
         try:
             power_on(H, timeout=BOOT_TIMEOUT_S)
