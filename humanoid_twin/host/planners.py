@@ -78,20 +78,24 @@ MAX_PERIOD_S = 255 * TICK_S          # the movement period travels as one byte o
 # 7.9 (rocks on the toes). KP and KD only add phase lag here (KI 2 + KP 2 -> 4.3 deg). Final
 # error 0 deg (NO_CONTROL keeps the pot calibration error, ~1 deg); the price is a lag behind
 # the cubic during the motion (~16 deg on a 40 deg knee motion in 1 s, ~8 deg in 2 s).
-# BALANCE (Jacobian-transpose CoP law on foot lateral, foot front and knee; only KP is used:
-# v = (KP * J^T e) >> 16 in 1/256 deg/tick, e = CoP_ref - CoP in mm): KP 1 = ~2.8 deg/s at a
-# 10 mm CoP error. Measured in the twin (levantar_perna knee 50 deg, T 1 s, seeds 0 and 1, both
-# legs; BALANCE on the support leg during the hold): KP 1 -> trunk tilt max 1.3-4.6 deg, no
-# fall; KP 2 -> falls backward on one side; KP 4 -> falls: moving the body over the foot
-# needs an ankle torque that first pushes the CoP the other way, and the velocity law chases it.
-# BALANCE during the lift and the lower too (both feet still down, the foot's CoP held at its
-# outer edge by the two legs' internal forces) -> the law undoes the weight shift and falls.
-# REACTION (proportional CoP law, KP/256 deg/tick per mm): KP 1, same reasoning.
+# BALANCE (Jacobian-transpose CoP law on foot lateral, foot front and knee) and REACTION
+# (proportional CoP law on the two foot joints): the firmware reads KP as a signed byte and KD as
+# the gain's binary exponent, gain = KP / 2^KD, on a CoP low-passed over 8 ticks (docs/balance.md).
+# These defaults are for the leg that carries the robot alone (single support): KP 1, KD 1 on the
+# three joints (BALANCE: 0.18 deg/s per mm of CoP error at the straight leg). Measured in the twin
+# (levantar_perna knee 40 deg, T 1 s, BALANCE on the support leg in the hold, seeds 0-1, both
+# legs): no fall, CoP margin min 1.5-10.6 mm over the whole run (the smallest in the return to
+# double support), trunk tilt max 1.3-2.5 deg; with the lean cut to 13 deg the law keeps the
+# one-leg stance (margin 3.4-10 mm) where the same plan without it (LOCOMOTION in the hold) tips
+# the support foot onto its edge in 3 runs of 4 (tests/test_balance.py). KP 2, KD 0 rocks the
+# robot on the foot edges. Both legs on the same law in double support fight each other
+# (docs/balance.md): a stand uses a leader/follower pair (scenarios.STAND_GAINS);
+# ``--control balance|reaction`` puts these same gains on both legs and reproduces that instability.
 GAINS: dict[ControlType, tuple[tuple[int, int, int], ...]] = {
     ControlType.NO_CONTROL: ((0, 0, 0),) * 3,
     ControlType.LOCOMOTION_CONTROL: ((1, 0, 0),) * 3,
-    ControlType.REACTION_CONTROL: ((0, 1, 0), (0, 1, 0), (1, 0, 0)),
-    ControlType.BALANCE_CONTROL: ((0, 1, 0),) * 3,
+    ControlType.REACTION_CONTROL: ((0, 1, 1), (0, 1, 1), (0, 0, 0)),
+    ControlType.BALANCE_CONTROL: ((0, 1, 1),) * 3,
 }
 
 # levantar_perna: lateral lean of both legs (ankle roll, hip roll opposite) and of the upper
@@ -229,7 +233,7 @@ def levantar_perna(
 
     Control: LOCOMOTION_CONTROL on SCUs 1-5, except the support leg's board (foot lateral, foot
     front, knee), which runs BALANCE_CONTROL during the hold (single support: the other foot is
-    up, so the support foot's CoP is the robot's).
+    up, so the support foot's CoP is the robot's; docs/balance.md).
 
     Both legs: 3 motions (both legs flex as in step 2, hold, return), LOCOMOTION_CONTROL on the
     legs and hips.
