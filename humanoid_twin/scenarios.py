@@ -140,10 +140,22 @@ class Plan:
 # Default planner arguments per scenario (``--T``, ``--motion``).
 DEFAULT_T_S = 1.0
 DEFAULT_MOTION_DEG = {"flexao": 20.0, "inclinar": 10.0, "levantar_perna": 40.0}
-# ``stand``: the vertical posture, BALANCE_CONTROL on the leg boards (foot lateral, foot front,
-# knee), LOCOMOTION_CONTROL on the hips.
+# ``stand``: the vertical posture, both feet down, BALANCE_CONTROL on the leg boards and
+# LOCOMOTION_CONTROL on the hips. In double support the two legs must not run the same law
+# (they fight through the pelvis, docs/balance.md): the right leg leads (its foot front joint
+# moves the mass centre to put its CoP on the foot centre, KP 1, KD 1: gain 1/2) and the left
+# leg follows (KP -4, KD 1: its foot front joint turns the foot to centre its own CoP, 4 times as
+# fast); foot lateral and knee gains 0 (the lateral CoP of a foot in double support is an internal
+# force; a knee bent on one leg only twists the pelvis). Rows: servos 1-3, (KI, KP, KD) bytes.
+# Measured (scripts/balance_study.py, docs/balance.md): largest platform tilt held 37 deg toes up
+# and down, against 13 / 12 deg with the controllers off.
 STAND_CONTROL = {1: ControlType.BALANCE_CONTROL, 2: ControlType.BALANCE_CONTROL,
                  3: ControlType.LOCOMOTION_CONTROL, 4: ControlType.LOCOMOTION_CONTROL}
+STAND_LEAD_KP, STAND_FOLLOW_KP, STAND_KD = 1, -4, 1
+STAND_GAINS: dict[int, tuple[tuple[int, int, int], ...]] = {
+    1: ((0, 0, 0), (0, STAND_LEAD_KP & 0xFF, STAND_KD), (0, 0, 0)),
+    2: ((0, 0, 0), (0, STAND_FOLLOW_KP & 0xFF, STAND_KD), (0, 0, 0)),
+}
 
 
 def plan(scenario: str, T: float | None = None, motion: float | None = None, perna: int = 1) -> Plan:
@@ -153,7 +165,7 @@ def plan(scenario: str, T: float | None = None, motion: float | None = None, per
     if scenario == "stand":
         pos, k, t = empty_plan(1)
         for scu, ctype in STAND_CONTROL.items():
-            k[scu - 1, :, 0, :3] = GAINS[ctype]
+            k[scu - 1, :, 0, :3] = STAND_GAINS.get(scu, GAINS[ctype])
             k[scu - 1, :, 0, 3] = int(ctype)
         t[0] = DEFAULT_T_S
         return Plan(pos, k, t)
