@@ -1,0 +1,236 @@
+"""Balance study: the largest platform tilt the robot stands, as a function of the balance gains.
+
+For each controller (REACTION_CONTROL, BALANCE_CONTROL) and each gain of a sweep, the ``stand``
+scenario is run on a platform that tilts at 1 deg/s (as ``humanoid-twin run stand --tilt DEG``)
+and the largest tilt *held* is found by bisection: held = the robot did not fall and the
+ground-truth CoP stayed strictly inside the support polygon for the whole run (ramp + 2 s of
+settling). The same search with the controllers off (NO_CONTROL) gives the reference line.
+
+Gains (docs/balance.md): in double support the right leg's board runs the law with the gain
+``g = KP / 2**KD`` (the leader) and the left leg's board runs it with ``-FOLLOW_RATIO * g`` (the
+compliant follower); the ankle roll gains are 0 (the lateral CoP of a foot in double support is an
+internal force). The effective gain on the x axis is ``g`` in the firmware's units.
+
+Writes ``docs/balance_study.png`` and ``docs/balance_study.md`` (a markdown table), and prints the
+table. About 6 minutes on this machine with the default sweep (two cores shared: keep it alone).
+
+    python scripts/balance_study.py [--quick] [--out-dir docs] [--jobs 1]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+import time
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from humanoid_twin.host.motion import power_on, send_gains
+from humanoid_twin.host.planners import GAINS
+from humanoid_twin.host.timebase import sleep as host_sleep
+from humanoid_twin.protocol.rs232 import ControlType
+from humanoid_twin.scenarios import SETTLE_S, TILT_RATE_DEG_S, Monitor, tilt_profile
+from humanoid_twin.twin import Twin
+
+FOLLOW_RATIO = 4          # the follower complies 4 times as fast as the leader balances
+TILT_MAX_DEG = 44.0       # the platform's range is +-45 deg
+TILT_RES_DEG = 1.0        # bisection resolution
+
+
+@dataclass(frozen=True)
+class Gain:
+    """A leader gain ``kp / 2**kd`` (KP a signed byte, KD the exponent byte)."""
+
+    kp: int
+    kd: int
+
+    @property
+    def value(self) -> float:
+        return self.kp / 2**self.kd
+
+    def label(self) -> str:
+        return f"{self.kp}/2^{self.kd}" if self.kd else f"{self.kp}"
+
+
+def _byte(v: int) -> int:
+    return int(v) & 0xFF
+
+
+def stand_gains(ctype: ControlType, g: Gain) -> np.ndarray:
+    """k rows of SCUs 1-4 (``[KI, KP, KD, type]`` per servo) of a double-support stand with
+    leader (right leg) / follower (left leg) balance gains ``g`` on the foot front joint only
+    (ankle roll and knee gains 0, docs/balance.md)."""
+    k = np.zeros((4, 3, 4))
+    if ctype == ControlType.NO_CONTROL:
+        return k
+    lead = (0, g.kp, 0)
+    follow = (0, -FOLLOW_RATIO * g.kp, 0)
+    for row, kps in ((0, lead), (1, follow)):
+        for i in range(3):
+            k[row, i] = (0, _byte(kps[i]), g.kd, int(ctype))
+    for row in (2, 3):   # hips: LOCOMOTION
+        k[row, :, :3] = GAINS[ControlType.LOCOMOTION_CONTROL]
+        k[row, :, 3] = int(ControlType.LOCOMOTION_CONTROL)
+    return k
+
+
+def run_stand(ctype: ControlType, g: Gain | None, tilt: float, seed: int = 0) -> dict[str, Any]:
+    """One ``stand --tilt`` run with the given gains; returns the Monitor's verdict."""
+    twin = Twin(seed=seed)
+    try:
+        monitor = Monitor(twin)
+        monitor.attach()
+        H = twin.open_port()
+        power_on(H, timeout=5.0)
+        boot = twin.now_s
+        k = stand_gains(ctype, g or Gain(0, 0))
+        for scu in (1, 2, 3, 4):
+            send_gains(H, scu, k[scu - 1])
+        twin.plant.set_tilt_profile(tilt_profile(tilt, boot))
+        host_sleep(H, boot + abs(tilt) / TILT_RATE_DEG_S + SETTLE_S - twin.now_s)
+        margin = monitor.cop_margin_min_mm
+        return {
+            "fell": monitor.fell,
+            "cop_margin_min_mm": margin if math.isfinite(margin) else -1000.0,
+            "trunk_tilt_max_deg": monitor.trunk_tilt_max_deg,
+        }
+    finally:
+        twin.close()
+
+
+def held(r: dict[str, Any]) -> bool:
+    """Stood: not fallen, the CoP strictly inside the support polygon all along."""
+    return not r["fell"] and r["cop_margin_min_mm"] > 0.0
+
+
+def tilt_limit(ctype: ControlType, g: Gain | None, sign: int = 1, seed: int = 0) -> float:
+    """Largest tilt (degrees, of sign ``sign``) held, by bisection to :data:`TILT_RES_DEG`."""
+    lo, hi = 0.0, TILT_MAX_DEG
+    if held(run_stand(ctype, g, sign * hi, seed)):
+        return sign * hi
+    while hi - lo > TILT_RES_DEG:
+        mid = round((lo + hi) / 2)
+        if held(run_stand(ctype, g, sign * mid, seed)):
+            lo = mid
+        else:
+            hi = mid
+    return sign * lo
+
+
+def _job(args: Job) -> tuple[str, float | None, float]:
+    name, kp, kd, sign = args
+    ctype = ControlType[name]
+    g = None if kp is None else Gain(kp, kd or 0)
+    return name, None if g is None else g.value, tilt_limit(ctype, g, sign)
+
+
+Job = tuple[str, int | None, int | None, int]
+
+
+def sweep(quick: bool) -> list[Job]:
+    """The jobs: (controller name, KP, KD, tilt sign); controllers off first."""
+    gains = [Gain(1, 3), Gain(1, 1), Gain(2, 0)] if quick else [
+        Gain(1, 4), Gain(1, 3), Gain(1, 2), Gain(1, 1), Gain(1, 0), Gain(2, 0), Gain(4, 0)]
+    jobs: list[Job] = []
+    for sign in (1, -1):
+        jobs.append(("NO_CONTROL", None, None, sign))
+        for name in ("REACTION_CONTROL", "BALANCE_CONTROL"):
+            jobs += [(name, g.kp, g.kd, sign) for g in gains]
+    return jobs
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--quick", action="store_true", help="3 gains instead of 8")
+    ap.add_argument("--out-dir", type=Path, default=Path(__file__).resolve().parents[1] / "docs")
+    ap.add_argument("--jobs", type=int, default=1, help="worker processes (default 1)")
+    args = ap.parse_args(argv)
+    jobs = sweep(args.quick)
+    t0 = time.perf_counter()
+    results: dict[tuple[str, float | None, int], float] = {}
+    with ProcessPoolExecutor(max_workers=args.jobs) as pool:
+        for job, (name, gv, lim) in zip(jobs, pool.map(_job, jobs), strict=True):
+            results[(name, gv, job[3])] = lim
+            print(json.dumps({"controller": name, "gain": gv, "sign": job[3], "limit_deg": lim}),
+                  file=sys.stderr, flush=True)
+    wall = time.perf_counter() - t0
+    args.out_dir.mkdir(parents=True, exist_ok=True)
+    table = write_table(results, args.out_dir / "balance_study.md", wall)
+    print(table)
+    write_plot(results, args.out_dir / "balance_study.png")
+    return 0
+
+
+Results = dict[tuple[str, float | None, int], float]
+
+
+def _rows(results: Results) -> list[tuple[str, float | None, float, float]]:
+    keys = sorted({(n, g) for n, g, _ in results}, key=lambda x: (x[0] != "NO_CONTROL", x[0], x[1] or 0))
+    return [(n, g, results[(n, g, 1)], results[(n, g, -1)]) for n, g in keys]
+
+
+def write_table(results: dict[tuple[str, float | None, int], float], path: Path, wall: float) -> str:
+    """The markdown table of the limits."""
+    lines = [
+        "| controller | leader gain KP/2^KD | follower gain | largest tilt held, toes up (deg) "
+        "| largest tilt held, toes down (deg) |",
+        "|---|---|---|---|---|",
+    ]
+    for name, g, pos, neg in _rows(results):
+        gs = "-" if g is None else f"{g:g}"
+        fs = "-" if g is None else f"{-FOLLOW_RATIO * g:g}"
+        lines.append(f"| {name} | {gs} | {fs} | {pos:g} | {neg:g} |")
+    lines.append("")
+    lines.append(f"Tilt at {TILT_RATE_DEG_S:g} deg/s then {SETTLE_S:g} s settling, seed 0, bisection to "
+                 f"{TILT_RES_DEG:g} deg, {TILT_MAX_DEG:g} deg = the top of the search (platform range "
+                 f"+-45). Generated by scripts/balance_study.py in {wall:.0f} s.")
+    text = "\n".join(lines) + "\n"
+    path.write_text(text)
+    return text
+
+
+def write_plot(results: dict[tuple[str, float | None, int], float], path: Path) -> None:
+    """Largest tilt held vs gain, both controllers, both tilt directions; the controllers-off
+    limits as horizontal lines."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(7.5, 4.6), dpi=110)
+    styles = {"REACTION_CONTROL": ("tab:blue", "REACTION (v = KP e)"),
+              "BALANCE_CONTROL": ("tab:red", "BALANCE (v = KP J^T e)")}
+    for name, (color, label) in styles.items():
+        gs = sorted({g for (n, g, _) in results if n == name and g is not None})
+        if not gs:
+            continue
+        ax.plot(gs, [results[(name, g, 1)] for g in gs], "o-", color=color, label=f"{label}, toes up")
+        ax.plot(gs, [-results[(name, g, -1)] for g in gs], "s--", color=color, alpha=0.6,
+                label=f"{label}, toes down")
+    off_pos = results.get(("NO_CONTROL", None, 1))
+    off_neg = results.get(("NO_CONTROL", None, -1))
+    if off_pos is not None:
+        ax.axhline(off_pos, color="k", lw=1.2, label=f"controllers off, toes up ({off_pos:g} deg)")
+    if off_neg is not None:
+        ax.axhline(-off_neg, color="k", lw=1.2, ls=":",
+                   label=f"controllers off, toes down ({-off_neg:g} deg)")
+    ax.set_xscale("log", base=2)
+    ax.set_xlabel(f"leader gain KP / 2^KD (firmware units; follower = -{FOLLOW_RATIO} x)")
+    ax.set_ylabel("largest platform tilt held (deg)")
+    ax.set_ylim(0, TILT_MAX_DEG + 2)
+    ax.set_title("Standing on a platform tilting at 1 deg/s, double support")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=7, loc="lower left")
+    fig.tight_layout()
+    fig.savefig(path)
+    plt.close(fig)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
