@@ -154,7 +154,7 @@ def cmd_run(args: argparse.Namespace) -> int:
         from tqdm import tqdm
 
         bar = tqdm(total=100, unit="%", desc=f"{args.scenario} (simulated)", file=sys.stderr,
-                   bar_format="{desc}: {percentage:3.0f}%|{bar}| {postfix}", leave=False)
+                   bar_format="{desc}: {percentage:3.0f}%|{bar}|{postfix}", leave=False)
 
         def on_progress(t: float, duration: float) -> None:
             bar.n = min(100.0, 100.0 * t / duration) if duration > 0 else 100.0
