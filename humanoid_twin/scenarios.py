@@ -143,15 +143,15 @@ DEFAULT_MOTION_DEG = {"flexao": 20.0, "inclinar": 10.0, "levantar_perna": 40.0}
 # ``stand``: the vertical posture, both feet down, BALANCE_CONTROL on the leg boards and
 # LOCOMOTION_CONTROL on the hips. In double support the two legs must not run the same law
 # (they fight through the pelvis, docs/balance.md): the right leg leads (its foot front joint
-# moves the mass centre to put its CoP on the foot centre, KP 1, KD 1: gain 1/2) and the left
-# leg follows (KP -4, KD 1: its foot front joint turns the foot to centre its own CoP, 4 times as
+# moves the mass centre to put its CoP on the foot centre, KP 1, KD 2: gain 1/4) and the left
+# leg follows (KP -8, KD 2: its foot front joint turns the foot to centre its own CoP, 8 times as
 # fast); foot lateral and knee gains 0 (the lateral CoP of a foot in double support is an internal
 # force; a knee bent on one leg only twists the pelvis). Rows: servos 1-3, (KI, KP, KD) bytes.
-# Measured (scripts/balance_study.py, docs/balance.md): largest platform tilt held 37 deg toes up
-# and down, against 13 / 12 deg with the controllers off.
+# Measured (scripts/balance_study.py, docs/balance.md): largest platform tilt held 36 deg toes up,
+# 37 toes down, against 13 / 12 deg with the controllers off; BALANCE holds from gain 1/8 to 1/2.
 STAND_CONTROL = {1: ControlType.BALANCE_CONTROL, 2: ControlType.BALANCE_CONTROL,
                  3: ControlType.LOCOMOTION_CONTROL, 4: ControlType.LOCOMOTION_CONTROL}
-STAND_LEAD_KP, STAND_FOLLOW_KP, STAND_KD = 1, -4, 1
+STAND_LEAD_KP, STAND_FOLLOW_KP, STAND_KD = 1, -8, 2
 STAND_GAINS: dict[int, tuple[tuple[int, int, int], ...]] = {
     1: ((0, 0, 0), (0, STAND_LEAD_KP & 0xFF, STAND_KD), (0, 0, 0)),
     2: ((0, 0, 0), (0, STAND_FOLLOW_KP & 0xFF, STAND_KD), (0, 0, 0)),
