@@ -12,6 +12,7 @@ from typing import TYPE_CHECKING
 
 import can
 
+from humanoid_twin.bus.network import BUS_OFF
 from humanoid_twin.master.candrivers import CanDrivers
 from humanoid_twin.master.database import Database
 from humanoid_twin.protocol.canframes import (
@@ -32,9 +33,6 @@ if TYPE_CHECKING:
 
     from humanoid_twin.bus.network import CanNetwork
     from humanoid_twin.clock import Clock
-
-# CanController.state -> ERRSTATE byte of the CAN status response (SPEC.md section 2).
-ERRSTATE: dict[str, int] = {"error-active": 0, "error-passive": 1, "bus-off": 2}
 
 _Message = can.Message
 
@@ -87,7 +85,7 @@ class MasterCan:
         key = scu * 2 + index
         entry = self._tx_msgs.get(key)
         ctl = self.drivers.controller
-        if entry is None or ctl is None or ctl.pending or ctl.state == "bus-off":
+        if entry is None or ctl is None or ctl.pending or ctl.state == BUS_OFF:
             msg = _Message(arbitration_id=ACTUATION_IDS[scu][index], is_extended_id=False, data=payload,
                            is_rx=False)
             self._tx_msgs[key] = (msg, payload)
@@ -166,4 +164,4 @@ class MasterCan:
         """``(ERRSTATE, TEC, REC)`` of the Master's controller for the CAN status response:
         ERRSTATE 0 error-active, 1 error-passive, 2 bus-off; TEC/REC clipped to a byte."""
         ctl = self.drivers.controller
-        return ERRSTATE[ctl.state], min(ctl.tec, 255), min(ctl.rec, 255)
+        return ctl.error_state_code, min(ctl.tec, 255), min(ctl.rec, 255)

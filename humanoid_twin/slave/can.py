@@ -26,6 +26,7 @@ from typing import TYPE_CHECKING, Any
 
 import can
 
+from humanoid_twin.bus.network import BUS_OFF
 from humanoid_twin.hardware import MASTER, PWM_BUSY_US, PWM_PERIOD_US
 from humanoid_twin.protocol.canframes import (
     OP_ACTUATION,
@@ -186,7 +187,7 @@ class SlaveCan:
         self.tx_packets += 1
         controller = self.controller
         msg = self._tx_msgs[index]
-        if msg is None or controller.pending or controller.state == "bus-off":
+        if msg is None or controller.pending or controller.state == BUS_OFF:
             # a new message when the controller may still hold a frame of this board (pending,
             # or on the wire while bus-off)
             msg = self._tx_msgs[index] = can.Message(
@@ -206,7 +207,7 @@ class SlaveCan:
         """``checkCan`` (table 18): if the controller is bus-off, recover it (``clear_status``).
         Returns True when a recovery was started."""
         c = self.controller
-        if c is not None and c.state == "bus-off" and not getattr(c, "recovering", False):
+        if c is not None and c.state == BUS_OFF and not getattr(c, "recovering", False):
             c.clear_status()
             self.bus_off_recoveries += 1
             return True
