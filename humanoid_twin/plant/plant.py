@@ -306,8 +306,8 @@ class Plant:
             n = -1
         if n != hardware.N_SERVOS:
             raise PlantInputError(f"SCU {scu}: need a sequence of 3 pulses, got {pulses_us!r}")
-        lo = hardware.pulse_from_deg(hardware.POS_MIN_DEG)
-        hi = hardware.pulse_from_deg(hardware.POS_MAX_DEG)
+        lo = _PULSE_MIN_US
+        hi = _PULSE_MAX_US
         for p in pulses_us:
             if p is not None and (isinstance(p, bool) or not isinstance(p, numbers.Real)
                                   or not lo <= p <= hi):
@@ -572,6 +572,8 @@ class Plant:
 
 
 _RAD_PER_US = math.radians(1.0) / hardware.PULSE_US_PER_DEG
+_PULSE_MIN_US = hardware.pulse_from_deg(hardware.POS_MIN_DEG)
+_PULSE_MAX_US = hardware.pulse_from_deg(hardware.POS_MAX_DEG)
 _DEG_PER_RAD = 180.0 / math.pi
 _COUNTS_PER_N = 1.0 / hardware.FORCE_N_PER_COUNT
 _FACETS_CONDIM3 = np.arange(4)
