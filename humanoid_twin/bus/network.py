@@ -622,12 +622,9 @@ class CanNetwork:
             c._off = True
             self._mute(c, True)
             c.bus_off_count += 1
-            # the TX buffers are cleared: pending requests are dropped
-            if c._n_pending:
-                keep = [e for e in self._pending if e[2] is not c]
-                dropped = len(self._pending) - len(keep)
-                self._pending[:] = keep
-                c.tx_aborted += dropped
+            # the TX buffers are cleared: pending requests are dropped (a frame of c's still
+            # on the wire is not retransmitted: c is off)
+            self._abort(c)
             c._n_pending = 0
         elif c.tec > PASSIVE_LIMIT or c.rec > PASSIVE_LIMIT:
             c.state = ERROR_PASSIVE
