@@ -54,6 +54,10 @@ class RunOptions:
     # The ground-truth monitor behind fell / trunk tilt / CoP margin / CoP error. Off only for
     # scripts/bench.py, which times the twin itself (like recording, it is instrumentation).
     monitor: bool = True
+    # python-can interface of the CAN wire: the project's own "humanoid_twin" (frames delivered in
+    # virtual time only to the nodes whose slide-23 filters take them), or "virtual" / "socketcan"
+    can_interface: str = "humanoid_twin"
+    can_channel: str | None = None
 
 
 @dataclass
@@ -196,7 +200,7 @@ def run(opts: RunOptions, on_progress: Callable[[float, float], None] | None = N
     """Run one scenario headless and return the SPEC.md section 6 summary."""
     if opts.scenario not in SCENARIOS:
         raise ScenarioError(f"unknown scenario {opts.scenario!r} (choose from {', '.join(SCENARIOS)})")
-    twin = Twin(seed=opts.seed)
+    twin = Twin(seed=opts.seed, can_interface=opts.can_interface, can_channel=opts.can_channel)
     recorder = canlog = None
     wall0 = time.perf_counter()
     try:

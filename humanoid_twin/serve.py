@@ -22,13 +22,15 @@ def serve(
     host: str = "127.0.0.1",
     seed: int = 0,
     tilt: float = 0.0,
+    can_interface: str = "humanoid_twin",
+    can_channel: str | None = None,
     should_stop: Callable[[], bool] = lambda: False,
     max_seconds: float | None = None,
 ) -> int:
     """Serve until ``should_stop()`` (or ``max_seconds`` of wall time); returns an exit code."""
     from humanoid_twin.bus.bridges import PtyBridge, TcpBridge
 
-    twin = Twin(seed=seed)
+    twin = Twin(seed=seed, can_interface=can_interface, can_channel=can_channel)
     bridge = TcpBridge(twin.link, host=host, port=tcp_port) if tcp_port is not None else PtyBridge(twin.link)
     try:
         if tilt:

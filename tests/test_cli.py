@@ -88,3 +88,22 @@ def test_default_recording_is_named_after_the_scenario(tmp_path):
     r = cli("run", "stand", "--duration", "3", "--no-progress", cwd=str(tmp_path))
     assert r.returncode == 0, r.stderr
     assert (tmp_path / "stand.rrd").is_file()
+
+
+@pytest.mark.parametrize("scenario", ["flexao", "inclinar", "levantar_perna"])
+def test_each_motion_runs_headless_from_the_cli(scenario, tmp_path):
+    r = cli("run", scenario, "--no-record", "--json", "--no-progress", cwd=str(tmp_path))
+    assert r.returncode == 0, r.stderr
+    s = json.loads(r.stdout.strip().splitlines()[-1])
+    assert s["scenario"] == scenario and s["fell"] is False
+    assert s["cop_margin_min_mm"] > 0                  # the CoP stayed inside the support polygon
+    assert s["duration_s"] > s["boot_s"] + 1.0          # the motion ran after the boot
+    assert s["serial_frames"] > 8 * 3 + 4 * 5          # boot + the motion's requests
+
+
+def test_python_cans_virtual_interface_gives_the_same_run(tmp_path):
+    runs = [json.loads(cli("run", "stand", "--duration", "3.2", "--no-record", "--json", "--no-progress",
+                           *extra, cwd=str(tmp_path)).stdout.strip().splitlines()[-1])
+            for extra in ([], ["--can-interface", "virtual"])]
+    for key in ("can_frames", "serial_frames", "cop_error_rms_mm", "cop_margin_min_mm", "trunk_tilt_max_deg"):
+        assert runs[0][key] == runs[1][key], key

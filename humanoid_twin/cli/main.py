@@ -58,6 +58,16 @@ def _degrees(text: str) -> float:
     return value
 
 
+CAN_INTERFACES = ("humanoid_twin", "virtual", "socketcan")
+
+
+def _add_can_options(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--can-interface", choices=CAN_INTERFACES, default="humanoid_twin",
+                   help="python-can interface of the CAN wire (default humanoid_twin: the project's own, "
+                   "frames in virtual time; socketcan needs --can-channel, e.g. vcan0, for candump)")
+    p.add_argument("--can-channel", help="python-can channel (default: a fresh one; socketcan: vcan0)")
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The CLI's argument parser (exposed for the docs and the tests)."""
     from humanoid_twin.scenarios import CONTROL_CHOICES, SCENARIOS
@@ -94,6 +104,7 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--json", action="store_true", help="print the summary as one JSON object on the "
                      "last line of stdout")
     run.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
+    _add_can_options(run)
 
     serve = sub.add_parser(
         "serve",
@@ -107,6 +118,7 @@ def build_parser() -> argparse.ArgumentParser:
     serve.add_argument("--host", default="127.0.0.1", help="address to bind with --tcp (default 127.0.0.1)")
     serve.add_argument("--seed", type=int, default=0, help="random seed")
     serve.add_argument("--tilt", type=_degrees, default=0.0, help="tilt the platform slowly to DEG")
+    _add_can_options(serve)
 
     view = sub.add_parser("view", help="open a recording in the rerun viewer",
                           description="Open FILE.rrd in the rerun viewer (same as `rerun FILE.rrd`).")
@@ -146,7 +158,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     opts = RunOptions(
         scenario=args.scenario, duration=args.duration, T=args.T, motion=args.motion, perna=args.perna,
         out=out, can_log=args.can_log, control=args.control, tilt=args.tilt, seed=args.seed,
-        progress=not args.no_progress,
+        progress=not args.no_progress, can_interface=args.can_interface, can_channel=args.can_channel,
     )
     bar = None
     on_progress = None
@@ -198,6 +210,7 @@ def cmd_serve(args: argparse.Namespace) -> int:
     signal.signal(signal.SIGTERM, _stop)
     signal.signal(signal.SIGINT, _stop)
     return serve(tcp_port=args.tcp, host=args.host, seed=args.seed, tilt=args.tilt,
+                 can_interface=args.can_interface, can_channel=args.can_channel,
                  should_stop=lambda: stop["flag"])
 
 

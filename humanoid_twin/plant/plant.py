@@ -502,6 +502,8 @@ class Plant:
     def foot_cop_mm(self, foot: str) -> np.ndarray | None:
         """Ground-truth CoP of one foot (foot frame, mm), None when unloaded: the part of
         :meth:`truth` a per-tick comparison needs, without the rest."""
+        if foot not in FOOT_BODIES:
+            raise PlantInputError(f"unknown foot {foot!r}; the feet are {', '.join(FOOT_BODIES)}")
         f = FOOT_BODIES.index(foot)
         pad_f, foot_sum, _, _ = self._contact_sums()
         tot = pad_f[f].sum()
