@@ -142,6 +142,19 @@ class CanController:
         """TX buffers in use (requested frames not yet completed or aborted)."""
         return self._n_pending
 
+    def load_tx(self, msg: can.Message | None, arbitration_id: int, payload: bytes) -> can.Message:
+        """The message to hand to :meth:`send`: ``msg`` reloaded with ``payload`` (like loading
+        the PIC's TXBn registers) when this controller holds none of the node's frames any more,
+        else a new message (a pending frame, or one on the wire while bus-off, must not change)."""
+        if msg is None or self._n_pending or self.state == BUS_OFF:
+            return can.Message(arbitration_id=arbitration_id, data=payload, is_extended_id=False, is_rx=False)
+        msg.data[:] = payload
+        msg.dlc = len(payload)
+        msg.timestamp = 0.0
+        msg.channel = None
+        msg.is_rx = False
+        return msg
+
     @property
     def error_state_code(self) -> int:
         """0 error-active, 1 error-passive, 2 bus-off (the ERRSTATE byte of SPEC.md section 2)."""

@@ -12,7 +12,6 @@ from typing import TYPE_CHECKING
 
 import can
 
-from humanoid_twin.bus.network import BUS_OFF
 from humanoid_twin.master.candrivers import CanDrivers
 from humanoid_twin.master.database import Database
 from humanoid_twin.protocol.canframes import (
@@ -34,9 +33,6 @@ if TYPE_CHECKING:
     from humanoid_twin.bus.network import CanNetwork
     from humanoid_twin.clock import Clock
 
-_Message = can.Message
-
-
 class MasterCan:
     """The Master's CAN module: database <-> packets, over :class:`CanDrivers`."""
 
@@ -45,7 +41,7 @@ class MasterCan:
         self.db = db
         self.drivers = CanDrivers(network, name)
         self.rejected: list[tuple[int, int, str]] = []  # (t_us, id, reason), the last few rejected frames
-        self._tx_msgs: dict[int, tuple[can.Message, bytes]] = {}   # scu * 2 + index -> (message, payload)
+        self._tx_msgs: dict[int, can.Message] = {}   # scu * 2 + index -> its last actuation message
 
     def canInit(self, on_rx: Callable[[can.Message], None]) -> None:
         """``canInit`` (table 4): CAN peripheral with the Master's acceptance filters (slide 23:
@@ -81,23 +77,11 @@ class MasterCan:
 
     def _message(self, scu: int, index: int, payload: bytes) -> can.Message:
         """The actuation packet ``index`` of ``scu`` as a message, reused from its last request
-        (loading a TX buffer) when the controller holds none of the Master's frames any more."""
-        key = scu * 2 + index
-        entry = self._tx_msgs.get(key)
+        when the controller holds none of the Master's frames any more (``load_tx``)."""
         ctl = self.drivers.controller
-        if entry is None or ctl is None or ctl.pending or ctl.state == BUS_OFF:
-            msg = _Message(arbitration_id=ACTUATION_IDS[scu][index], is_extended_id=False, data=payload,
-                           is_rx=False)
-            self._tx_msgs[key] = (msg, payload)
-            return msg
-        msg, loaded = entry
-        if loaded is not payload:
-            msg.data[:] = payload
-            msg.dlc = len(payload)
-            self._tx_msgs[key] = (msg, payload)
-        msg.timestamp = 0.0
-        msg.channel = None
-        msg.is_rx = False
+        assert ctl is not None, "canInit attaches the controller before any canSendMsg"
+        key = scu * 2 + index
+        msg = self._tx_msgs[key] = ctl.load_tx(self._tx_msgs.get(key), ACTUATION_IDS[scu][index], payload)
         return msg
 
     def canAbort(self) -> None:

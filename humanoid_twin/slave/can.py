@@ -186,21 +186,8 @@ class SlaveCan:
         status; 1: currents, force sensors) to the Master."""
         self.tx_packets += 1
         controller = self.controller
-        msg = self._tx_msgs[index]
-        if msg is None or controller.pending or controller.state == BUS_OFF:
-            # a new message when the controller may still hold a frame of this board (pending,
-            # or on the wire while bus-off)
-            msg = self._tx_msgs[index] = can.Message(
-                arbitration_id=self._sensor_ids[index], data=self.payload[index], is_extended_id=False
-            )
-        else:
-            # reload the same message (like TXBn): the controller is done with the last frame
-            payload = self.payload[index]
-            msg.data[:] = payload
-            msg.dlc = len(payload)
-            msg.timestamp = 0.0
-            msg.channel = None
-            msg.is_rx = True
+        msg = self._tx_msgs[index] = controller.load_tx(
+            self._tx_msgs[index], self._sensor_ids[index], self.payload[index])
         controller.send(msg)
 
     def checkCan(self) -> bool:
