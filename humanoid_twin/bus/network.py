@@ -239,7 +239,6 @@ class CanNetwork:
         self._rng = random.Random(0)
         # counters
         self.frames_sent = 0
-        self.frames_by_node: dict[str, int] = {}
         self.frames_dropped = 0
         self.error_frames = 0
         self.busy_us = 0
@@ -276,8 +275,12 @@ class CanNetwork:
         ctrl.bus = bus
         self._controllers[name] = ctrl
         self._nodes.append(ctrl)
-        self.frames_by_node[name] = 0
         return ctrl
+
+    @property
+    def frames_by_node(self) -> dict[str, int]:
+        """Frames each node (and each outside tool's bus) put on the wire."""
+        return {c.name: c.frames_sent for c in (*self._nodes, *self._external.values())}
 
     def add_listener(self, listener: can.Listener) -> None:
         """Give ``listener`` every completed frame (virtual timestamps, ``channel`` set), in order.
@@ -373,7 +376,7 @@ class CanNetwork:
             "tx_refused": sum(c.tx_refused for c in self._nodes),
             "tx_aborted": sum(c.tx_aborted for c in self._nodes),
             "bus_load": self.bus_load,
-            "frames_by_node": dict(self.frames_by_node),
+            "frames_by_node": self.frames_by_node,
             "nodes": {c.name: {"state": c.state, "tec": c.tec, "rec": c.rec} for c in self._nodes},
         }
 
@@ -426,7 +429,6 @@ class CanNetwork:
             ctrl = CanController(self, f"external:{id(bus):x}", None, EXTERNAL_TX_QUEUE, external=True)
             ctrl.bus = bus
             self._external[id(bus)] = ctrl
-            self.frames_by_node.setdefault(ctrl.name, 0)
         if not self._request(ctrl, msg):
             raise can.CanOperationError(f"humanoid_twin channel {self.channel}: TX queue full")
 
@@ -512,7 +514,6 @@ class CanNetwork:
             ctrl.tec -= 1
             self._update_state(ctrl)
         self.frames_sent += 1
-        self.frames_by_node[ctrl.name] += 1
         self.busy_us += self._idle_from - self._start
         if self._rec_dirty:
             self._rx_success(ctrl)
