@@ -80,9 +80,7 @@ class Monitor:
         leg board right after its own tick (its force samples and the truth of the same instant)."""
         self.twin.every(PWM_PERIOD_US, self.sample)
         for scu, foot in FOOT_OF_SCU.items():
-            first = self.twin.phases_us[scu]
-            while first < self.twin.clock.now_us:
-                first += PWM_PERIOD_US
+            first = self.twin.slaves[scu].next_tick_us()
             self.twin.every(PWM_PERIOD_US, lambda scu=scu, foot=foot: self.compare_cop(scu, foot), first)
 
     def sample(self) -> None:

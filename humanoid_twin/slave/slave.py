@@ -105,9 +105,12 @@ class Slave:
     def main(self) -> None:
         """``main`` (fig. 6): ``initPic``, then the 20 ms loop (calibration first, inside it)."""
         self.initPic()
+        self.clock.call_every(PWM_PERIOD_US, self._tick, self.next_tick_us())
+
+    def next_tick_us(self) -> int:
+        """The first instant >= now that starts one of this board's PWM periods (a tick)."""
         now = self.clock.now_us
-        first = now + (self.phase_us - now) % PWM_PERIOD_US
-        self.clock.call_every(PWM_PERIOD_US, self._tick, first)
+        return now + (self.phase_us - now) % PWM_PERIOD_US
 
     def initPic(self) -> None:
         """``initPic`` (table 16): databases (``initGlobal``), trajectories, PWM off, filters
