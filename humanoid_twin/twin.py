@@ -89,9 +89,7 @@ class Twin:
             return
         self._closed = True
         unregister_link(self.name)
-        close = getattr(self.network, "shutdown", None)
-        if close is not None:
-            close()
+        self.network.shutdown()
 
     def __enter__(self) -> Twin:
         return self
