@@ -222,11 +222,14 @@ class Supervisor:
         self._master_sent = sent
         if q[0] >= cfg.silent_rounds and not master_down:
             self._fault(SILENT, 0, now)
-        master_down = master_down or q[0] >= cfg.silent_rounds
+        # a round in which the Master got nothing on the wire says nothing about the Slaves
+        # (they only answer the Master's packets): their silence is not counted then
+        master_down = master_down or q[0] >= 1
         hold_us = (cfg.deadline_ticks - 1) * PWM_PERIOD_US
         for k, s in db.sensors.items():
             n = s.packets1 + s.packets2
-            q[k] = q[k] + 1 if n == self._packets[k] else 0
+            if not master_down:
+                q[k] = q[k] + 1 if n == self._packets[k] else 0
             self._packets[k] = n
             if master_down:
                 continue
