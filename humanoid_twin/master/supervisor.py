@@ -269,30 +269,42 @@ class Supervisor:
                 return False
         return True
 
-    def foot_margin_mm(self, scu: int) -> float | None:
-        """The Master's firmware CoP of the foot of leg board ``scu`` (``calcCoP`` on the forces of
-        its last Sensors 2 packet, each taken as ``reading - 128 + calib_load`` 7-bit counts, as
-        host/cop.py does) -> its distance inside the sensor rectangle (mm); None if unloaded."""
+    def foot_cop_mm(self, scu: int) -> tuple[int, int] | None:
+        """The Master's firmware CoP ``(x, y)`` (mm, foot frame) of leg board ``scu``: ``calcCoP``
+        on the forces of its last Sensors 2 packet, each taken as ``reading - 128 + calib_load``
+        7-bit counts (as host/cop.py does); None when the foot is unloaded."""
         load = self.config.balance_calib_load
         w = [max(v - 128 + load, 0) for v in self.db.sensors[scu].special]
         x, y, loaded = calcCoP(w)
-        if not loaded:
-            return None
-        return min(x - SENSOR_X_MIN, SENSOR_X_MAX - x, y - SENSOR_Y_MIN, SENSOR_Y_MAX - y)
+        return (x, y) if loaded else None
+
+    def balance_margin_mm(self) -> float | None:
+        """How far the firmware CoP is inside the edge the robot can tip over (mm), None while
+        a foot's PWM is off. The edges are those of the sensor rectangles (the firmware's CoP
+        cannot leave them): with one foot loaded, the nearest edge of its rectangle; with both
+        loaded, the front (back) edge, the smaller of the two feet's distances to it (the feet
+        stand side by side: the lateral edges of the support are the feet's outer edges, which
+        the robot only reaches once the other foot is off the ground). -1 with no foot loaded."""
+        sensors = self.db.sensors
+        cops = []
+        for k in FOOT_OF_SCU:
+            if not sensors[k].status & _STATUS_PWM:
+                return None
+            c = self.foot_cop_mm(k)
+            if c is not None:
+                cops.append(c)
+        if not cops:
+            return -1.0
+        if len(cops) == 1:
+            x, y = cops[0]
+            return min(x - SENSOR_X_MIN, SENSOR_X_MAX - x, y - SENSOR_Y_MIN, SENSOR_Y_MAX - y)
+        front = max(SENSOR_Y_MAX - y for _, y in cops)
+        back = max(y - SENSOR_Y_MIN for _, y in cops)
+        return min(front, back)
 
     def _check_balance(self, now: int) -> None:
-        sensors = self.db.sensors
-        if not all(sensors[k].status & _STATUS_PWM for k in FOOT_OF_SCU):
-            self._balance_since = None
-            return
-        margin = self.config.balance_margin_mm
-        bad = True
-        for k in FOOT_OF_SCU:
-            m = self.foot_margin_mm(k)
-            if m is not None and m > margin:
-                bad = False
-                break
-        if not bad:
+        m = self.balance_margin_mm()
+        if m is None or m > self.config.balance_margin_mm:
             self._balance_since = None
             return
         if self._balance_since is None:
