@@ -4,6 +4,11 @@ board within one 8 ms round), reset, the serial bytes, and the host's typed erro
 
 from __future__ import annotations
 
+import select
+import subprocess
+import sys
+import time
+
 import pytest
 
 from humanoid_twin.host import drivers
@@ -98,3 +103,68 @@ def test_estop_pwm_off_within_one_round_then_reset_and_power_on_back_to_ready() 
         power_on(H)
         twin.run_for(0.05)
         assert drivers.readsupervisor(H).mode == sv.READY
+
+
+# --- over a real pty / TCP port: humanoid-twin serve in another process ----------------------
+def _serve(*args: str) -> tuple[subprocess.Popen, str]:
+    proc = subprocess.Popen([sys.executable, "-m", "humanoid_twin.cli.main", "serve", *args],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    ready, _, _ = select.select([proc.stdout], [], [], 30)
+    if not ready:
+        proc.kill()
+        raise AssertionError("serve printed no port in 30 s")
+    return proc, proc.stdout.readline().strip()
+
+
+def _stop(proc: subprocess.Popen) -> None:
+    proc.terminate()
+    try:
+        proc.wait(10)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        proc.wait(10)
+
+
+@pytest.mark.parametrize("where", ["--pty", "--tcp"])
+def test_estop_reset_power_on_over_serve(where) -> None:
+    proc, port = _serve(*(["--tcp", "0"] if where == "--tcp" else ["--pty"]))
+    try:
+        with drivers.HumanoidClient(port, timeout=0.5) as robot:
+            power_on(robot.serial_port, timeout=10.0)
+            deadline = time.monotonic() + 5
+            while robot.supervisor().mode_name != "ready" and time.monotonic() < deadline:
+                time.sleep(0.05)
+            assert robot.supervisor().mode_name == "ready"
+            robot.estop()
+            sup = robot.supervisor()
+            assert (sup.mode, sup.mode_name) == (4, "estop")
+            time.sleep(0.02)                 # the boards' answers carry it from the next round on
+            for k in range(1, 9):            # every board's status: PWM off
+                assert not robot.read_status(k) & drivers.STATUS_PWM, k
+            with pytest.raises(drivers.SupervisorRefused, match="mode estop") as exc:
+                robot.set_positions(1, [0, 5, 0])
+            assert exc.value.mode == 4
+            robot.reset()
+            assert robot.supervisor().mode_name == "self_check"
+            power_on(robot.serial_port, timeout=10.0)
+            deadline = time.monotonic() + 5
+            while robot.supervisor().mode_name != "ready" and time.monotonic() < deadline:
+                time.sleep(0.05)
+            assert robot.supervisor().mode_name == "ready"
+            robot.set_positions(1, [0, 5, 0])   # accepted again
+    finally:
+        _stop(proc)
+
+
+def test_serve_fault_a_client_sees_the_supervisor_refuse_the_boot() -> None:
+    proc, port = _serve("--pty", "--fault", "silent:5")
+    try:
+        with drivers.HumanoidClient(port, timeout=0.5) as robot:
+            with pytest.raises(drivers.SupervisorRefused, match="mode safe, latched fault silent on node 5"):
+                power_on(robot.serial_port, timeout=10.0)
+                time.sleep(0.3)
+                robot.set_pwm(1, True)
+            sup = robot.supervisor()
+            assert (sup.mode_name, sup.fault_name, sup.node, sup.nfaults) == ("safe", "silent", 5, 1)
+    finally:
+        _stop(proc)
