@@ -124,6 +124,10 @@ def build_parser() -> argparse.ArgumentParser:
     _add_can_options(serve)
     add_fault_options(serve)
 
+    from humanoid_twin.sweep.cli import add_sweep_parser
+
+    add_sweep_parser(sub, SCENARIOS)   # its other options are run's (main passes them through)
+
     view = sub.add_parser("view", help="open a recording in the rerun viewer",
                           description="Open FILE.rrd in the rerun viewer (same as `rerun FILE.rrd`).")
     view.add_argument("file", type=Path, help="the .rrd recording")
@@ -230,10 +234,21 @@ def cmd_view(args: argparse.Namespace) -> int:
     return subprocess.call([sys.executable, "-m", "rerun", str(args.file)])
 
 
+def cmd_sweep(args: argparse.Namespace) -> int:
+    """``humanoid-twin sweep``: a grid of runs into one table (humanoid_twin/sweep/, docs/sweeps.md)."""
+    from humanoid_twin.sweep.cli import sweep_command
+
+    return sweep_command(args, build_parser())
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``humanoid-twin`` console script."""
-    args = build_parser().parse_args(argv)
-    handler = {"run": cmd_run, "serve": cmd_serve, "view": cmd_view}[args.command]
+    parser = build_parser()
+    args, extra = parser.parse_known_args(argv)
+    if extra and args.command != "sweep":     # sweep gives run's options it does not know to every run
+        parser.error(f"unrecognized arguments: {' '.join(extra)}")
+    args.run_args = extra
+    handler = {"run": cmd_run, "serve": cmd_serve, "view": cmd_view, "sweep": cmd_sweep}[args.command]
     try:
         return handler(args)
     except KeyboardInterrupt:
