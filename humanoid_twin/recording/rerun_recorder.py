@@ -144,6 +144,7 @@ class Recorder:
         self.chunks_sent = 0
         self.wall_s = 0.0
         self._closed = False
+        self._sending = False
         self._t0_us = twin.clock.now_us
         self._n = 0
 
@@ -290,6 +291,15 @@ class Recorder:
             return
         w0 = time.perf_counter()
         self._n = 0       # a failure below loses this chunk, never duplicates it
+        self._sending = True
+        try:
+            self._send(n)
+        finally:
+            self._sending = False
+        self.chunks_sent += 1
+        self.wall_s += time.perf_counter() - w0
+
+    def _send(self, n: int) -> None:
         rec = self.rec
         idx = [rr.TimeColumn(TIMELINE, duration=self._t[:n].astype("timedelta64[us]"))]
         vals = self._vals[:n]
@@ -321,8 +331,6 @@ class Recorder:
             ])
         self._send_feet(idx, vals)
         self._send_world(idx, n)
-        self.chunks_sent += 1
-        self.wall_s += time.perf_counter() - w0
 
     def _send_feet(self, idx: list, vals: np.ndarray) -> None:
         rec = self.rec
@@ -398,19 +406,24 @@ class Recorder:
         return p0[:, 2] - (nx * (xy[:, 0] - p0[:, 0]) + ny * (xy[:, 1] - p0[:, 1])) / nz + _ON_FLOOR_M
 
     # -- life cycle ----------------------------------------------------------------------------------
-    def close(self) -> None:
-        """Send what is buffered, flush rerun and finalise the file. Idempotent; also run at
-        interpreter exit (``atexit``), so an interrupted program leaves a readable file."""
+    def close(self, timeout_s: float = 10.0) -> None:
+        """Send what is buffered, flush rerun (waiting at most ``timeout_s``) and finalise the
+        file. Idempotent, and safe to call from a signal handler or a ``finally`` at any point
+        of a run (also when the handler interrupted a :meth:`sample` or :meth:`flush`: the rows
+        being sent then are written, the half-taken row is dropped). Also run at interpreter exit
+        (``atexit``), so an interrupted program leaves a file ``rerun rrd verify`` accepts."""
         if self._closed:
             return
         w0 = time.perf_counter()
+        interrupted_send = self._sending
         try:
-            self.flush()
+            if not interrupted_send:
+                self.flush()
         finally:
             self._closed = True
             atexit.unregister(self.close)
             try:
-                self.rec.flush()
+                self.rec.flush(timeout_sec=timeout_s)
             finally:
                 self.rec.disconnect()
                 self.wall_s += time.perf_counter() - w0
