@@ -109,6 +109,7 @@ class Recorder:
         scus: Iterable[int] = range(1, N_SCU + 1),
         blueprint: bool = True,
         columns: Sequence[Column] = (),
+        compact: bool = True,
     ) -> None:
         t_start = time.perf_counter()
         if isinstance(period_us, bool) or not isinstance(period_us, int) or period_us <= 0:
@@ -145,6 +146,8 @@ class Recorder:
         self.wall_s = 0.0
         self._closed = False
         self._sending = False
+        self.compact = compact
+        self.size_before_compaction: int | None = None
         self._t0_us = twin.clock.now_us
         self._n = 0
 
@@ -157,7 +160,7 @@ class Recorder:
             self.rec.save(self.path, default_blueprint=bp)
         except RuntimeError as exc:
             raise OSError(f"cannot write the recording {str(self.path)!r}: {exc}") from exc
-        atexit.register(self.close)
+        atexit.register(self._close_at_exit)
         try:
             self._log_static()
         except BaseException:
@@ -206,6 +209,7 @@ class Recorder:
     def _alloc(self) -> None:
         rows, nb = self._rows, len(self._body_names)
         self._t = np.zeros(rows, dtype=np.int64)
+        self._k = np.zeros(rows, dtype=np.int64)       # the sample's number (for Column.every)
         self._vals = np.zeros((rows, self._ncols), dtype=np.float64)
         self._pos = np.zeros((rows, nb, 3), dtype=np.float64)
         self._quat = np.zeros((rows, nb, 4), dtype=np.float64)
@@ -236,6 +240,7 @@ class Recorder:
         w0 = time.perf_counter()
         i = self._n
         self._t[i] = now
+        self._k[i] = self.samples
         tick = self._tick = start_tick(twin, self._tick, self._signs)
         vals: list[float] = []
         ext = vals.extend
@@ -306,23 +311,33 @@ class Recorder:
         # Scalars and transforms go as ready arrow arrays (``rr.ComponentColumn`` over the
         # archetype's own descriptor): the same data as ``rr.Scalars.columns(...)`` /
         # ``rr.Transform3D.columns(...)``, at a third of their Python cost per call.
+        subsets: dict[int, tuple[list, np.ndarray, int]] = {1: (idx, vals, n)}
         for s in self.columns:
             c0 = self._col[s.path]
+            sub = subsets.get(s.every)
+            if sub is None:       # the rows of a column written every k-th sample
+                keep = self._k[:n] % s.every == 0
+                sub = subsets[s.every] = (
+                    [rr.TimeColumn(TIMELINE, duration=self._t[:n][keep].astype("timedelta64[us]"))],
+                    vals[keep], int(keep.sum()))
+            idx_s, vals_s, m = sub
+            if m == 0:
+                continue
             if s.width == 1:
-                col = vals[:, c0]
+                col = vals_s[:, c0]
                 if s.sparse:
                     ok = ~np.isnan(col)
                     if not ok.all():  # rows without a value: empty rows, a gap in the plot
-                        offsets = np.zeros(n + 1, dtype=np.int32)
+                        offsets = np.zeros(m + 1, dtype=np.int32)
                         np.cumsum(ok, out=offsets[1:])
-                        rec.send_columns(s.path, indexes=idx, columns=[
+                        rec.send_columns(s.path, indexes=idx_s, columns=[
                             rr.ComponentColumn(_D_SCALARS, _Arrow(pa.array(col[ok])), offsets=offsets)])
                         continue
                 data = pa.array(col)
             else:
-                data = pa.array(vals[:, c0:c0 + s.width].ravel())
-            rec.send_columns(s.path, indexes=idx, columns=[
-                rr.ComponentColumn(_D_SCALARS, _Arrow(data), offsets=_offsets(n, s.width))])
+                data = pa.array(vals_s[:, c0:c0 + s.width].ravel())
+            rec.send_columns(s.path, indexes=idx_s, columns=[
+                rr.ComponentColumn(_D_SCALARS, _Arrow(data), offsets=_offsets(m, s.width))])
         unit = _offsets(n, 1)
         for b, name in enumerate(self._body_names):
             rec.send_columns(f"{BODIES}/{name}", indexes=idx, columns=[
@@ -406,12 +421,16 @@ class Recorder:
         return p0[:, 2] - (nx * (xy[:, 0] - p0[:, 0]) + ny * (xy[:, 1] - p0[:, 1])) / nz + _ON_FLOOR_M
 
     # -- life cycle ----------------------------------------------------------------------------------
-    def close(self, timeout_s: float = 10.0) -> None:
+    def close(self, timeout_s: float = 10.0, *, compact: bool | None = None) -> None:
         """Send what is buffered, flush rerun (waiting at most ``timeout_s``) and finalise the
-        file. Idempotent, and safe to call from a signal handler or a ``finally`` at any point
-        of a run (also when the handler interrupted a :meth:`sample` or :meth:`flush`: the rows
-        being sent then are written, the half-taken row is dropped). Also run at interpreter exit
-        (``atexit``), so an interrupted program leaves a file ``rerun rrd verify`` accepts."""
+        file; then, when ``compact`` (default: the constructor's), rewrite it with rerun's own
+        ``rrd optimize`` (fewer, larger chunks; about 30 % smaller; ~1 s per 100 simulated s).
+
+        Idempotent, and safe to call from a signal handler or a ``finally`` at any point of a run
+        (also when the handler interrupted a :meth:`sample` or :meth:`flush`: the rows being sent
+        then are written, the half-taken row is dropped); from a handler pass ``compact=False``
+        to keep it short. Also run at interpreter exit (``atexit``, without compaction), so an
+        interrupted program leaves a file ``rerun rrd verify`` accepts."""
         if self._closed:
             return
         w0 = time.perf_counter()
@@ -421,12 +440,19 @@ class Recorder:
                 self.flush()
         finally:
             self._closed = True
-            atexit.unregister(self.close)
+            atexit.unregister(self._close_at_exit)
             try:
                 self.rec.flush(timeout_sec=timeout_s)
             finally:
                 self.rec.disconnect()
                 self.wall_s += time.perf_counter() - w0
+        if (self.compact if compact is None else compact) and not interrupted_send:
+            from humanoid_twin.recording.readback import compact_rrd
+
+            self.size_before_compaction, _ = compact_rrd(self.path)
+
+    def _close_at_exit(self) -> None:
+        self.close(compact=False)
 
     @property
     def closed(self) -> bool:
@@ -452,8 +478,8 @@ class Recorder:
     def __enter__(self) -> Recorder:
         return self
 
-    def __exit__(self, *exc: object) -> None:
-        self.close()
+    def __exit__(self, exc_type: object, *exc: object) -> None:
+        self.close(compact=None if exc_type is None else False)     # an error: keep closing short
 
     def __repr__(self) -> str:
         state = "closed" if self._closed else "open"
