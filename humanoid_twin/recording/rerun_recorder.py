@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import atexit
 import math
+import os
 import pathlib
 import time
 import uuid
@@ -31,7 +32,11 @@ from typing import Any
 
 import numpy as np
 import pyarrow as pa
-import rerun as rr
+
+# rerun warns once per file that it is streamed without its footer index (on purpose here: the
+# close rewrites it with one); keep that line out of the user's terminal unless RUST_LOG is set.
+os.environ.setdefault("RUST_LOG", "warn,re_log_encoding::rrd::file_sink=error")
+import rerun as rr  # noqa: E402
 
 from humanoid_twin.clock import US_PER_S
 from humanoid_twin.hardware import FOOT_OF_SCU, N_SCU, N_SPECIAL_SENSORS, PWM_PERIOD_US
