@@ -226,6 +226,10 @@ def run(opts: RunOptions, on_progress: Callable[[float, float], None] | None = N
         monitor = Monitor(twin)
         if opts.monitor:
             monitor.attach()
+        if recorder is not None:
+            rec_ = recorder
+            injector.listeners.append(
+                lambda t, what, spec: rec_.event(f"injected {spec.text}: {what}", "WARN", t))
         injector.install()
         H = twin.open_port()
         try:

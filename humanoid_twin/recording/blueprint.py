@@ -18,6 +18,8 @@ from humanoid_twin.recording.paths import (
     FEET,
     ROBOT,
     SERIAL,
+    SUPERVISOR_EVENTS,
+    SUPERVISOR_MODE,
     WORLD,
     foot_side,
     scu_path,
@@ -136,7 +138,13 @@ def default_blueprint(
     tabs += [currents]
     if feet:
         tabs += [forces, cop]
-    tabs += [counters, boards]
+    supervisor = rrb.Vertical(
+        rrb.TimeSeriesView(name="Supervisor mode (0 standby, 1 self_check, 2 ready, 3 safe, 4 estop)",
+                           origin=SUPERVISOR_MODE),
+        rrb.TextLogView(name="Supervisor events (faults, modes, injected faults)", origin=SUPERVISOR_EVENTS),
+        name="Supervisor",
+    )
+    tabs += [counters, boards, supervisor]
     if upper:
         tabs.append(_joint_grid(upper, "Upper body"))
     return rrb.Blueprint(

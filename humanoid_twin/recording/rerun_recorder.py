@@ -47,6 +47,7 @@ from humanoid_twin.hardware import (
     SERVO_JOINTS,
 )
 from humanoid_twin.plant import SERVO_SIGN
+from humanoid_twin.protocol.rs232 import SUPERVISOR_MODES
 from humanoid_twin.recording.blueprint import default_blueprint
 from humanoid_twin.recording.paths import (
     BODIES,
@@ -56,6 +57,8 @@ from humanoid_twin.recording.paths import (
     ROBOT,
     SENSOR_NAMES,
     SERIAL,
+    SUPERVISOR_EVENTS,
+    SUPERVISOR_MODE,
     WORLD,
     foot_view_path,
     scu_path,
@@ -202,7 +205,42 @@ class Recorder:
             self.close()
             raise
         twin.every(period_us, self.sample, twin.clock.now_us)
+        # the supervisor (docs/supervisor.md): its mode as a series, its faults as text events
+        self._sup = getattr(twin.master, "supervisor", None)
+        self._last_mode: int | None = None
+        if self._sup is not None:
+            self.mode(self._sup.mode)
+            self._sup.listeners.append(self._on_supervisor)
         self.wall_s += time.perf_counter() - t_start
+
+    # -- events on sim_time (docs/supervisor.md) ----------------------------------------------------
+    def event(self, text: str, level: str = "INFO", t_us: int | None = None) -> None:
+        """A text event on ``sim_time`` (``supervisor/events``): a fault, a mode change, an
+        injected fault. ``t_us``: virtual time (default now)."""
+        if self._closed:
+            return
+        t = self.twin.clock.now_us if t_us is None else t_us
+        self.rec.set_time(TIMELINE, duration=np.timedelta64(t, "us"))
+        self.rec.log(SUPERVISOR_EVENTS, rr.TextLog(text, level=level))
+
+    def mode(self, mode: int, t_us: int | None = None) -> None:
+        """One point of the ``supervisor/mode`` series (0 standby .. 4 estop) at ``t_us``."""
+        if self._closed:
+            return
+        t = self.twin.clock.now_us if t_us is None else t_us
+        self._last_mode = mode
+        self.rec.set_time(TIMELINE, duration=np.timedelta64(t, "us"))
+        self.rec.log(SUPERVISOR_MODE, rr.Scalars(float(mode)))
+
+    def _on_supervisor(self, kind: str, t_us: int, value: Any) -> None:
+        if kind == "mode":
+            prev = self._last_mode
+            if prev is not None and t_us > 0:
+                self.mode(prev, t_us - 1)          # a step, not a ramp, in the plot
+            self.mode(value, t_us)
+            self.event(f"mode {SUPERVISOR_MODES.get(value, value)}", "INFO", t_us)
+        else:
+            self.event(f"fault {value.name} (code {value.code}) node {value.node}", "ERROR", t_us)
 
     # -- layout --------------------------------------------------------------------------------------
     def _layout(self) -> None:
@@ -572,6 +610,10 @@ class Recorder:
         if self._closed:
             return
         w0 = time.perf_counter()
+        if self._sup is not None:
+            self.mode(self._sup.mode)              # the series reaches the end of the run
+            if self._on_supervisor in self._sup.listeners:
+                self._sup.listeners.remove(self._on_supervisor)
         try:
             self.flush()
         finally:
