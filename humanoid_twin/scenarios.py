@@ -229,7 +229,7 @@ def run(opts: RunOptions, on_progress: Callable[[float, float], None] | None = N
         if recorder is not None:
             rec_ = recorder
             injector.listeners.append(
-                lambda t, what, spec: rec_.event(f"injected {spec.text}: {what}", "WARN", t))
+                lambda t, what, spec: rec_.log_event(t, f"injected {spec.text}: {what}", "WARN"))
         injector.install()
         H = twin.open_port()
         try:

@@ -273,7 +273,8 @@ def test_real_ctrl_c_and_forgotten_close_leave_readable_files(tmp_path):
         "    twin.run_for(0.1)\n"
     )
     proc = subprocess.Popen([sys.executable, "-c", script], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                            text=True)
+                            text=True,  # default SIGINT in the child even when pytest runs with it ignored
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     try:
         assert proc.stdout.readline().strip() == "ready"
         proc.send_signal(signal.SIGINT)

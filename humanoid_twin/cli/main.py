@@ -18,7 +18,6 @@ import json
 import math
 import os
 import signal
-import subprocess
 import sys
 from pathlib import Path
 
@@ -124,9 +123,16 @@ def build_parser() -> argparse.ArgumentParser:
     _add_can_options(serve)
     add_fault_options(serve)
 
+    from humanoid_twin.sweep.cli import add_sweep_parser
+
+    add_sweep_parser(sub, SCENARIOS)   # its other options are run's (main passes them through)
+
     view = sub.add_parser("view", help="open a recording in the rerun viewer",
                           description="Open FILE.rrd in the rerun viewer (same as `rerun FILE.rrd`).")
     view.add_argument("file", type=Path, help="the .rrd recording")
+    view.add_argument("--web", action="store_true",
+                      help="serve rerun's web viewer on 127.0.0.1 and print its URL (no display needed)")
+    view.add_argument("--port", type=int, default=9090, help="HTTP port of --web (default 9090)")
     return parser
 
 
@@ -227,13 +233,31 @@ def cmd_view(args: argparse.Namespace) -> int:
     """``humanoid-twin view FILE.rrd``: the rerun viewer shipped with rerun-sdk."""
     if not args.file.is_file():
         raise _usage_error(f"no such recording: {args.file}")
-    return subprocess.call([sys.executable, "-m", "rerun", str(args.file)])
+    from humanoid_twin.recording.viewer import ViewerError, view
+
+    if not 0 < args.port < 65536:
+        raise _usage_error(f"--port {args.port}: must be 1..65535")
+    try:
+        return view(args.file, web=args.web, web_port=args.port)
+    except ViewerError as exc:
+        raise _usage_error(str(exc)) from None
+
+
+def cmd_sweep(args: argparse.Namespace) -> int:
+    """``humanoid-twin sweep``: a grid of runs into one table (humanoid_twin/sweep/, docs/sweeps.md)."""
+    from humanoid_twin.sweep.cli import sweep_command
+
+    return sweep_command(args, build_parser())
 
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``humanoid-twin`` console script."""
-    args = build_parser().parse_args(argv)
-    handler = {"run": cmd_run, "serve": cmd_serve, "view": cmd_view}[args.command]
+    parser = build_parser()
+    args, extra = parser.parse_known_args(argv)
+    if extra and args.command != "sweep":     # sweep gives run's options it does not know to every run
+        parser.error(f"unrecognized arguments: {' '.join(extra)}")
+    args.run_args = extra
+    handler = {"run": cmd_run, "serve": cmd_serve, "view": cmd_view, "sweep": cmd_sweep}[args.command]
     try:
         return handler(args)
     except KeyboardInterrupt:

@@ -15,8 +15,7 @@ __all__ = [
     "CAN",
     "SERIAL",
     "MASTER",
-    "SUPERVISOR_MODE",
-    "SUPERVISOR_EVENTS",
+    "SUPERVISOR",
     "scu_path",
     "servo_path",
     "foot_side",
@@ -38,8 +37,7 @@ ROBOT = "robot"                       # trunk tilt, CoM height, CoP margin, fell
 CAN = "bus/can"
 SERIAL = "bus/serial"
 MASTER = "master"                     # Master.stats() counters
-SUPERVISOR_MODE = "supervisor/mode"   # the Master's supervisor mode, 0..4 (docs/supervisor.md)
-SUPERVISOR_EVENTS = "supervisor/events"   # detected faults, mode changes, injected faults (text)
+SUPERVISOR = "supervisor"             # the Master supervisor: mode series, events (TextLog)
 
 
 def scu_path(scu: int) -> str:
