@@ -51,6 +51,9 @@ SENSOR_COLOURS: tuple[RGB, ...] = (RED, BLUE, ORANGE, GREEN)               # SEN
 # Master.stats() keys with these prefixes share one entity (one series per key): master/can, ...
 _MASTER_GROUPS = ("serial_frames_", "serial_bytes_", "can_")
 _NAN = math.nan
+# Slow counters and flags (cumulative counts, PWM/calibrated, controller state) are written every
+# 5th sample (10 Hz at the default 20 ms): they change rarely, and a per-tick copy only costs file.
+COUNTER_EVERY = 5
 
 
 @dataclass(frozen=True)
@@ -59,7 +62,8 @@ class Column:
 
     ``path``: entity path; ``names``: the series (one value each per tick); ``unit``: of every
     value; ``read(tick)``: the values now, ``len(names)`` floats; ``colors``: one per series or
-    None (rerun's palette); ``sparse``: NaN means "no value this tick" (a gap, width 1 only).
+    None (rerun's palette); ``sparse``: NaN means "no value this tick" (a gap, width 1 only);
+    ``every``: written every ``every``-th sample only (slow counters and flags, COUNTER_EVERY).
     """
 
     path: str
@@ -68,6 +72,11 @@ class Column:
     read: Callable[[Tick], Sequence[float]]
     colors: tuple[RGB, ...] | None = None
     sparse: bool = False
+    every: int = 1
+
+    def __post_init__(self) -> None:
+        if self.every < 1:
+            raise ValueError(f"column {self.path!r}: every must be >= 1, got {self.every!r}")
 
     @property
     def width(self) -> int:
@@ -127,9 +136,9 @@ def _board_columns(scu: int, slave: Any) -> list[Column]:
 
     cols = [
         *_servo_columns(scu, slave),
-        Column(f"{base}/status", ("pwm", "calibrated"), "flag", status),
+        Column(f"{base}/status", ("pwm", "calibrated"), "flag", status, every=COUNTER_EVERY),
         Column(f"{base}/deadline_violations", ("deadline violations",), "count",
-               lambda t, slv=slave: (slv.deadline_violations,)),
+               lambda t, slv=slave: (slv.deadline_violations,), every=COUNTER_EVERY),
     ]
     foot = FOOT_OF_SCU.get(scu)
     if foot is None:
@@ -203,16 +212,17 @@ def _bus_columns(twin: Any) -> list[Column]:
         return (last["rate"][0],)
 
     return [
-        Column(f"{CAN}/frames", ("frames",), "count", lambda t: (net.frames_sent,)),
+        Column(f"{CAN}/frames", ("frames",), "count", lambda t: (net.frames_sent,), every=COUNTER_EVERY),
         Column(f"{CAN}/frames_per_s", ("frames/s",), "1/s", frames_per_s),
         Column(f"{CAN}/load_percent", ("bus load",), "%", lambda t: (last["rate"][1],)),
-        Column(f"{CAN}/error_frames", ("error frames",), "count", lambda t: (net.error_frames,), (RED,)),
+        Column(f"{CAN}/error_frames", ("error frames",), "count", lambda t: (net.error_frames,), (RED,),
+               every=COUNTER_EVERY),
         Column(f"{CAN}/frames_dropped", ("frames dropped",), "count",
-               lambda t: (net.frames_dropped,), (ORANGE,)),
+               lambda t: (net.frames_dropped,), (ORANGE,), every=COUNTER_EVERY),
         Column(f"{CAN}/master_controller", ("state (0 active, 1 passive, 2 off)", "TEC", "REC"),
-               "code / count", lambda t: (ctl.error_state_code, ctl.tec, ctl.rec)),
+               "code / count", lambda t: (ctl.error_state_code, ctl.tec, ctl.rec), every=COUNTER_EVERY),
         Column(f"{SERIAL}/bytes", ("to device", "to host"), "bytes",
-               lambda t: (link.bytes_to_device, link.bytes_to_host)),
+               lambda t: (link.bytes_to_device, link.bytes_to_host), every=COUNTER_EVERY),
     ]
 
 
@@ -243,7 +253,8 @@ def _master_columns(twin: Any, groups: list[tuple[str, list[str]]]) -> list[Colu
         return cache["stats"]
 
     return [
-        Column(path, tuple(keys), "count", lambda t, keys=tuple(keys): [stats(t).get(k, _NAN) for k in keys])
+        Column(path, tuple(keys), "count", lambda t, keys=tuple(keys): [stats(t).get(k, _NAN) for k in keys],
+               every=COUNTER_EVERY)
         for path, keys in groups
     ]
 
