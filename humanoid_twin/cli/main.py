@@ -18,7 +18,6 @@ import json
 import math
 import os
 import signal
-import subprocess
 import sys
 from pathlib import Path
 
@@ -131,6 +130,9 @@ def build_parser() -> argparse.ArgumentParser:
     view = sub.add_parser("view", help="open a recording in the rerun viewer",
                           description="Open FILE.rrd in the rerun viewer (same as `rerun FILE.rrd`).")
     view.add_argument("file", type=Path, help="the .rrd recording")
+    view.add_argument("--web", action="store_true",
+                      help="serve rerun's web viewer on 127.0.0.1 and print its URL (no display needed)")
+    view.add_argument("--port", type=int, default=9090, help="HTTP port of --web (default 9090)")
     return parser
 
 
@@ -231,7 +233,14 @@ def cmd_view(args: argparse.Namespace) -> int:
     """``humanoid-twin view FILE.rrd``: the rerun viewer shipped with rerun-sdk."""
     if not args.file.is_file():
         raise _usage_error(f"no such recording: {args.file}")
-    return subprocess.call([sys.executable, "-m", "rerun", str(args.file)])
+    from humanoid_twin.recording.viewer import ViewerError, view
+
+    if not 0 < args.port < 65536:
+        raise _usage_error(f"--port {args.port}: must be 1..65535")
+    try:
+        return view(args.file, web=args.web, web_port=args.port)
+    except ViewerError as exc:
+        raise _usage_error(str(exc)) from None
 
 
 def cmd_sweep(args: argparse.Namespace) -> int:
