@@ -226,6 +226,10 @@ def run(opts: RunOptions, on_progress: Callable[[float, float], None] | None = N
         monitor = Monitor(twin)
         if opts.monitor:
             monitor.attach()
+        if recorder is not None:
+            rec_ = recorder
+            injector.listeners.append(
+                lambda t, what, spec: rec_.log_event(t, f"injected {spec.text}: {what}", "WARN"))
         injector.install()
         H = twin.open_port()
         try:

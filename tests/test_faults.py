@@ -187,3 +187,50 @@ def test_cli_exit_codes_and_summary(tmp_path) -> None:
     assert out.stat().st_size > 0 and log.stat().st_size > 0
     ok = _cli("run", "stand", "--duration", "3", "--no-record", "--json", "--no-progress", cwd=tmp_path)
     assert ok.returncode == 0 and json.loads(ok.stdout.strip().splitlines()[-1])["mode"] == "ready"
+
+
+# --- the recording: mode series, faults and injections as text events, a Supervisor view -------
+def _names(container) -> list[str]:
+    out = [getattr(container, "name", None)]
+    for c in getattr(container, "contents", None) or []:
+        out += _names(c)
+    return [n for n in out if n]
+
+
+def test_recording_has_the_mode_series_the_events_and_a_supervisor_view(tmp_path) -> None:
+    from rerun.chunk import RrdReader
+
+    from humanoid_twin.recording import read_rrd_scalars, rrd_has_blueprint
+    from humanoid_twin.recording.blueprint import default_blueprint
+
+    out = tmp_path / "f.rrd"
+    s = run(RunOptions(scenario="stand", duration=3.4, progress=False, out=out,
+                       faults=(parse_fault("silent:3@3"),)))
+    assert s["mode"] == "safe"
+    t, series = read_rrd_scalars(out, "supervisor/mode")
+    mode, nfaults = series[:, 0], series[:, 1]
+    assert list(dict.fromkeys(mode.tolist())) == [0.0, 1.0, 2.0, 3.0]
+    assert t[-1] >= 3.3 and mode[-1] == 3.0 and nfaults[-1] == 1.0
+    texts = []
+    for c in RrdReader(out).stream():
+        if c.entity_path == "/supervisor/events":
+            rb = c.to_record_batch()
+            tl = rb.column(rb.schema.names.index("sim_time")).cast("int64").to_numpy(zero_copy_only=False)
+            for ts, txt in zip(tl, rb.column(rb.schema.names.index("TextLog:text")).to_pylist(), strict=True):
+                texts.append((ts / 1e9, txt[0]))
+    texts.sort()
+    assert any(txt == "injected silent:3@3: start" and abs(ts - 3.0) < 1e-6 for ts, txt in texts)
+    fault = [ts for ts, txt in texts if txt == "fault silent (node 3)"]
+    assert fault and abs(fault[0] - s["faults"][0]["t_s"]) < 1e-6
+    assert rrd_has_blueprint(out)
+    assert "Supervisor" in _names(default_blueprint().root_container)
+
+
+def test_fault_runs_are_seeded() -> None:
+    specs = ("can-drop:0.05@2.9", "serial-noise:0.01@2.9", "force-noise:20@2.9")
+    a = run_with("stand", *specs, duration=3.3, seed=3)
+    b = run_with("stand", *specs, duration=3.3, seed=3)
+    c = run_with("stand", *specs, duration=3.3, seed=4)
+    keys = ("can_frames", "serial_frames", "faults", "cop_error_rms_mm", "mode")
+    assert [a[k] for k in keys] == [b[k] for k in keys]
+    assert [a[k] for k in keys] != [c[k] for k in keys]

@@ -90,6 +90,8 @@ def test_estop_pwm_off_within_one_round_then_reset_and_power_on_back_to_ready() 
         twin.run_for(0.008 - (twin.clock.now_us - t_stop) / 1e6)
         assert not any(s.pic.pwm for s in twin.slaves.values())
         assert not any(twin.plant.servo_powered(k, i) for k in twin.slaves for i in range(3))
+        # and every board's status (its next Sensors 1 answer) says PWM off
+        assert not any(s.can.payload[0][7] & drivers.STATUS_PWM for s in twin.slaves.values())
         twin.run_for(0.02)
         for k in twin.slaves:
             assert not drivers.readjoint(H, k, 0).state & drivers.STATUS_PWM
@@ -168,3 +170,32 @@ def test_serve_fault_a_client_sees_the_supervisor_refuse_the_boot() -> None:
             assert (sup.mode_name, sup.fault_name, sup.node, sup.nfaults) == ("safe", "silent", 5, 1)
     finally:
         _stop(proc)
+
+
+# A clean seeded run puts on the bus exactly what it did before the supervisor existed: the
+# reference log of `humanoid-twin run flexao --seed 0 --can-log flexao_s0.asc`, made before this
+# work. Compared: the .asc body after its 2-line header (the first line is the date), each line's
+# tokens without the channel number (a process-wide counter, not the run's). The supervisor adds
+# nothing on the bus (docs/supervisor.md).
+FLEXAO_S0_ASC_SHA256 = "5b0e9b4f06a5a3df0ed6e80d12e78fd44509c90199ae950c1f5a1de8fe3a22cd"
+
+
+def _asc_digest(data: bytes) -> str:
+    import hashlib
+
+    out = []
+    for line in data.decode().splitlines()[2:]:
+        t = line.split()
+        if len(t) > 2 and t[0].replace(".", "").isdigit():
+            del t[1]
+        out.append(" ".join(t))
+    return hashlib.sha256("\n".join(out).encode()).hexdigest()
+
+
+def test_clean_run_can_log_is_unchanged_by_the_supervisor(tmp_path) -> None:
+    from humanoid_twin.scenarios import RunOptions, run
+
+    log = tmp_path / "flexao_s0.asc"
+    s = run(RunOptions(scenario="flexao", seed=0, progress=False, can_log=log))
+    assert s["mode"] == "ready" and s["faults"] == []
+    assert _asc_digest(log.read_bytes()) == FLEXAO_S0_ASC_SHA256

@@ -238,7 +238,7 @@ class Supervisor:
             if q[k] >= cfg.silent_rounds and (s.last_rx_us >= 0 or self.mode != STANDBY):
                 self._fault(SILENT, k, now)
                 continue
-            if s.sflags & SFLAGS_CAN_STATE:
+            if s.sflags & SFLAGS_CAN_STATE and now - s.last_rx_us <= ROUND_US:   # a fresh report
                 self._fault(SLAVE_CAN, k, now)
             if s.status & _STATUS_DEADLINE:
                 since = self._deadline_since[k]

@@ -103,7 +103,8 @@ class Recorder:
     compacted at :meth:`close` (default); False: rerun writes the final file directly.
 
     Counters: ``samples`` (rows taken), ``chunks_sent``, ``wall_s`` (wall time spent in the
-    recorder: set-up, sampling, sending, closing), :meth:`cost_per_sim_s`.
+    recorder: set-up, sampling, sending, closing; the compaction at close apart, in ``compact_s``),
+    :meth:`cost_per_sim_s`.
     """
 
     def __init__(
@@ -156,6 +157,7 @@ class Recorder:
         self._sending = False
         self.compact = compact
         self.size_before_compaction: int | None = None
+        self.compact_s = 0.0          # wall time of the compaction at close (not in wall_s)
         self._t0_us = twin.clock.now_us
         self._n = 0
 
@@ -456,11 +458,13 @@ class Recorder:
                 self.rec.flush(timeout_sec=timeout_s)
             finally:
                 self.rec.disconnect()
+                self.wall_s += time.perf_counter() - w0
                 if self.compact:
                     from humanoid_twin.recording.readback import compact_rrd
 
+                    w1 = time.perf_counter()
                     self.size_before_compaction, _ = compact_rrd(self.path)
-                self.wall_s += time.perf_counter() - w0
+                    self.compact_s = time.perf_counter() - w1
 
     @property
     def closed(self) -> bool:
