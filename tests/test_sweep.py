@@ -170,3 +170,12 @@ def test_ray_backend_gives_the_same_rows(two_jobs, tmp_path, capsys):
     rc, _, _ = _sweep([*GRID, "--backend", "ray", "--jobs", "2", "--out", str(out)], capsys)
     assert rc == 0
     assert _untimed(_rows(out)) == _untimed(_rows(two_jobs))
+
+
+def test_a_run_past_the_timeout_is_a_row_with_its_error(tmp_path, capsys):
+    out = tmp_path / "slow.csv"
+    rc, stdout, _ = _sweep(["--param", "tilt=0", "--duration", "30", "--timeout", "0.5", "--out", str(out)],
+                           capsys)
+    assert rc == 0 and "1 runs, 1 failed" in stdout
+    (row,) = _rows(out)
+    assert row == {"tilt": "0", "seed": "0", "error": "RuntimeError: timeout: the run took more than 0.5 s"}
