@@ -17,11 +17,13 @@ from typing import Any
 
 import numpy as np
 
+from humanoid_twin.faults import FaultInjector, FaultSpec
 from humanoid_twin.hardware import FOOT_OF_SCU, PWM_PERIOD_US
 from humanoid_twin.host import drivers
 from humanoid_twin.host.motion import exe_traj, power_on, send_gains
 from humanoid_twin.host.planners import GAINS, LEG_SCUS, empty_plan, flexao, inclinar, levantar_perna
 from humanoid_twin.host.timebase import sleep as host_sleep
+from humanoid_twin.master.supervisor import ESTOP, SAFE, SupervisorConfig
 from humanoid_twin.protocol.rs232 import ControlType
 from humanoid_twin.twin import Twin
 
@@ -58,6 +60,9 @@ class RunOptions:
     # virtual time only to the nodes whose slide-23 filters take them), or "virtual" / "socketcan"
     can_interface: str = "humanoid_twin"
     can_channel: str | None = None
+    # injected faults (humanoid_twin/faults.py) and the supervisor's thresholds (docs/supervisor.md)
+    faults: tuple[FaultSpec, ...] = ()
+    supervisor: SupervisorConfig | None = None
 
 
 @dataclass
@@ -196,7 +201,15 @@ def run(opts: RunOptions, on_progress: Callable[[float, float], None] | None = N
     """Run one scenario headless and return the SPEC.md section 6 summary."""
     if opts.scenario not in SCENARIOS:
         raise ScenarioError(f"unknown scenario {opts.scenario!r} (choose from {', '.join(SCENARIOS)})")
-    twin = Twin(seed=opts.seed, can_interface=opts.can_interface, can_channel=opts.can_channel)
+    twin = Twin(seed=opts.seed, can_interface=opts.can_interface, can_channel=opts.can_channel,
+                supervisor=opts.supervisor)
+    sup = twin.master.supervisor
+    injector = FaultInjector(twin, opts.faults, opts.seed)
+    host_error: str | None = None
+
+    def stopped() -> bool:
+        return sup.mode in (SAFE, ESTOP)
+
     recorder = canlog = None
     wall0 = time.perf_counter()
     try:
@@ -211,11 +224,18 @@ def run(opts: RunOptions, on_progress: Callable[[float, float], None] | None = N
         monitor = Monitor(twin)
         if opts.monitor:
             monitor.attach()
+        if recorder is not None:
+            rec_ = recorder
+            injector.listeners.append(
+                lambda t, what, spec: rec_.log_event(t, f"injected {spec.text}: {what}", "WARN"))
+        injector.install()
         H = twin.open_port()
         try:
             power_on(H, timeout=BOOT_TIMEOUT_S)
         except drivers.CommError as exc:
-            raise ScenarioError(f"the twin did not boot: {exc}") from exc
+            if not stopped() and not opts.faults:
+                raise ScenarioError(f"the twin did not boot: {exc}") from exc
+            host_error = f"boot: {exc}"     # the supervisor stopped the boot: the run goes on
         boot_s = twin.now_s
         the_plan = plan(opts.scenario, T=opts.T, motion=opts.motion, perna=opts.perna)
         if opts.control is not None:
@@ -230,16 +250,22 @@ def run(opts: RunOptions, on_progress: Callable[[float, float], None] | None = N
         if on_progress is not None:
             twin.every(100_000, lambda: on_progress(twin.now_s, duration))
         try:
-            if opts.scenario == "stand":
+            if host_error is not None:
+                pass
+            elif opts.scenario == "stand":
                 for scu in LEG_SCUS:
                     send_gains(H, scu, the_plan.k[scu - 1, :, 0, :])
             elif duration > twin.now_s:
                 exe_traj(H, the_plan.t, the_plan.pos_apply, 0.0, k=the_plan.k)
-            rest = duration - twin.now_s
-            if rest > 0:
-                host_sleep(H, rest)
         except drivers.CommError as exc:
-            raise ScenarioError(f"{opts.scenario}: {exc}") from exc
+            # with the supervisor stopped, or faults injected, a failed request is part of what
+            # the run shows (summary host_error); the robot is left to the firmware meanwhile
+            if not stopped() and not opts.faults:
+                raise ScenarioError(f"{opts.scenario}: {exc}") from exc
+            host_error = f"{opts.scenario}: {exc}"
+        rest = duration - twin.now_s
+        if rest > 0:
+            host_sleep(H, rest)
         wall = time.perf_counter() - wall0
         summary = {
             "scenario": opts.scenario,
@@ -257,7 +283,12 @@ def run(opts: RunOptions, on_progress: Callable[[float, float], None] | None = N
             "tilt_deg": opts.tilt,
             "control": opts.control,
             "seed": opts.seed,
+            "mode": sup.mode_name,
+            "faults": [f.as_dict() for f in sup.faults],
+            "injected": [s.as_dict() for s in opts.faults],
         }
+        if host_error is not None:
+            summary["host_error"] = host_error
         return summary
     finally:
         if recorder is not None:

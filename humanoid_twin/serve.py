@@ -11,6 +11,8 @@ import time
 from collections.abc import Callable
 
 from humanoid_twin.clock import RealTimePacer
+from humanoid_twin.faults import FaultInjector, FaultSpec
+from humanoid_twin.master.supervisor import SupervisorConfig
 from humanoid_twin.twin import Twin
 
 POLL_S = 0.0005
@@ -26,11 +28,14 @@ def serve(
     can_channel: str | None = None,
     should_stop: Callable[[], bool] = lambda: False,
     max_seconds: float | None = None,
+    faults: tuple[FaultSpec, ...] = (),
+    supervisor: SupervisorConfig | None = None,
 ) -> int:
     """Serve until ``should_stop()`` (or ``max_seconds`` of wall time); returns an exit code."""
     from humanoid_twin.bus.bridges import PtyBridge, TcpBridge
 
-    twin = Twin(seed=seed, can_interface=can_interface, can_channel=can_channel)
+    twin = Twin(seed=seed, can_interface=can_interface, can_channel=can_channel, supervisor=supervisor)
+    FaultInjector(twin, faults, seed).install()     # --fault: a client can practise recovery
     bridge = TcpBridge(twin.link, host=host, port=tcp_port) if tcp_port is not None else PtyBridge(twin.link)
     try:
         if tilt:

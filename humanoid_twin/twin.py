@@ -21,6 +21,7 @@ from humanoid_twin.bus.serial_link import SerialLink
 from humanoid_twin.clock import US_PER_S, Clock, RealTimePacer
 from humanoid_twin.hardware import N_SCU, PWM_PERIOD_US
 from humanoid_twin.master.master import Master
+from humanoid_twin.master.supervisor import SupervisorConfig
 from humanoid_twin.plant import Plant
 from humanoid_twin.slave.slave import Slave
 
@@ -38,6 +39,7 @@ class Twin:
         can_interface: str = "humanoid_twin",
         can_channel: str | None = None,
         name: str | None = None,
+        supervisor: SupervisorConfig | None = None,
     ) -> None:
         self.seed = seed
         self.clock = Clock()
@@ -45,7 +47,7 @@ class Twin:
         self.plant = Plant(model_path, seed=seed, clock=self.clock)
         self.network = CanNetwork(self.clock, interface=can_interface, channel=can_channel)
         self.link = SerialLink(self.clock)
-        self.master = Master(self.clock, self.network, self.link)
+        self.master = Master(self.clock, self.network, self.link, supervisor)
         # Slave PWM periods are not synchronised on the robot: each board starts its 20 ms
         # period at its own phase, drawn from the seed (docs/firmware.md).
         self.phases_us: dict[int, int] = dict(zip(range(1, N_SCU + 1), _phases(seed), strict=True))

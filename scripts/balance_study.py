@@ -11,21 +11,27 @@ Gains (docs/balance.md): in double support the right leg's board runs the law wi
 compliant follower); the ankle roll gains are 0 (the lateral CoP of a foot in double support is an
 internal force). The effective gain on the x axis is ``g`` in the firmware's units.
 
-Writes ``docs/balance_study.png`` and ``docs/balance_study.md`` (a markdown table), and prints the
-table. About 8 minutes on this machine with the default sweep (30 bisections of ~6 runs;
-``--quick``: 14 bisections, ~4 minutes; ``--replot``: redraw from the JSON lines of a run).
+Built on the sweep API (humanoid_twin/sweep, docs/sweeps.md): the bisections of all the lines
+(controller, gain, tilt direction) advance together, one grid of runs per step (the first grid: every
+line at the top of the search; then every unresolved line at its mid-point), on the local process
+pool (``--jobs``, default the cores) or on Ray (``--backend ray [--address ADDR]``). Every run is a
+row of ``--runs`` (default ``out/balance_study_runs.csv``); running again with the same table runs
+nothing already there (an interrupted study resumes; an unchanged one only redraws).
 
-    python scripts/balance_study.py [--quick] [--out-dir docs] [--jobs 1] [--replot FILE]
+Writes ``balance_study.md`` (a markdown table) and ``balance_study.png`` into ``--out-dir``
+(default the scratch folder ``out/``; ``--out-dir docs`` regenerates the docs' copies) and prints the
+table. ``--quick``: 3 gains instead of 7.
+
+    python scripts/balance_study.py [--quick] [--out-dir out] [--runs FILE.csv] [--jobs N]
+                                    [--backend local|ray] [--address ADDR]
 """
 
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import sys
 import time
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -37,6 +43,7 @@ from humanoid_twin.host.planners import GAINS
 from humanoid_twin.host.timebase import sleep as host_sleep
 from humanoid_twin.protocol.rs232 import ControlType
 from humanoid_twin.scenarios import SETTLE_S, STAND_KD, STAND_LEAD_KP, TILT_RATE_DEG_S, Monitor, tilt_profile
+from humanoid_twin.sweep import Point, run_sweep
 from humanoid_twin.twin import Twin
 
 FOLLOW_RATIO = 8          # the follower complies 8 times as fast as the leader balances
@@ -110,67 +117,89 @@ def held(r: dict[str, Any]) -> bool:
     return not r["fell"] and r["cop_margin_min_mm"] > 0.0
 
 
-def tilt_limit(ctype: ControlType, g: Gain | None, sign: int = 1, seed: int = 0) -> float:
-    """Largest tilt (degrees, of sign ``sign``) held, by bisection to :data:`TILT_RES_DEG`."""
-    lo, hi = 0.0, TILT_MAX_DEG
-    if held(run_stand(ctype, g, sign * hi, seed)):
-        return sign * hi
-    while hi - lo > TILT_RES_DEG:
-        mid = round((lo + hi) / 2)
-        if held(run_stand(ctype, g, sign * mid, seed)):
-            lo = mid
-        else:
-            hi = mid
-    return sign * lo
+def stand_point(point: Point) -> dict[str, Any]:
+    """The sweep task: one ``stand --tilt`` run of a grid point (controller, kp, kd, tilt)."""
+    p = dict(point.params)
+    ctype = ControlType[p["controller"]]
+    r = run_stand(ctype, Gain(int(p["kp"]), int(p["kd"])), float(p["tilt"]), point.seed)
+    return {**r, "held": held(r)}
 
 
-def _job(args: Job) -> tuple[str, float | None, float]:
-    name, kp, kd, sign = args
-    ctype = ControlType[name]
-    g = None if kp is None else Gain(kp, kd or 0)
-    return name, None if g is None else g.value, tilt_limit(ctype, g, sign)
-
-
-Job = tuple[str, int | None, int | None, int]
+Line = tuple[str, int, int, int]       # controller name, KP, KD, tilt sign
 Results = dict[tuple[str, float | None, int], float]
 
 
-def sweep(quick: bool) -> list[Job]:
-    """The jobs: (controller name, KP, KD, tilt sign); controllers off first."""
+def lines(quick: bool) -> list[Line]:
+    """The bisections: (controller name, KP, KD, tilt sign); controllers off first."""
     gains = [Gain(1, 3), Gain(1, 1), Gain(2, 0)] if quick else [
         Gain(1, 4), Gain(1, 3), Gain(1, 2), Gain(1, 1), Gain(1, 0), Gain(2, 0), Gain(4, 0)]
-    jobs: list[Job] = []
+    out: list[Line] = []
     for sign in (1, -1):
-        jobs.append(("NO_CONTROL", None, None, sign))
+        out.append(("NO_CONTROL", 0, 0, sign))
         for name in ("REACTION_CONTROL", "BALANCE_CONTROL"):
-            jobs += [(name, g.kp, g.kd, sign) for g in gains]
-    return jobs
+            out += [(name, g.kp, g.kd, sign) for g in gains]
+    return out
+
+
+def tilt_limits(todo: list[Line], runs: Path, jobs: int | None, backend: str, address: str | None,
+                progress: bool) -> tuple[dict[Line, float], int]:
+    """Largest tilt held on every line, to :data:`TILT_RES_DEG`: the bisections as successive
+    grids (step 0: every line at the top of the search; then every unresolved line at its
+    mid-point). Returns the limits and the number of runs."""
+    lo = {ln: 0.0 for ln in todo}
+    hi = {ln: TILT_MAX_DEG for ln in todo}
+    limit: dict[Line, float] = {}
+    n_runs = 0
+    step = 0
+    while len(limit) < len(todo):
+        open_lines = [ln for ln in todo if ln not in limit]
+        tilts = {ln: TILT_MAX_DEG if step == 0 else round((lo[ln] + hi[ln]) / 2) for ln in open_lines}
+        points = [Point(i, (("controller", ln[0]), ("kp", ln[1]), ("kd", ln[2]), ("tilt", ln[3] * tilts[ln])))
+                  for i, ln in enumerate(open_lines)]
+        rows = run_sweep(points, stand_point, runs, jobs=jobs, backend=backend, address=address,
+                         progress=sys.stderr if progress else None)
+        n_runs += len(points)
+        for ln, row in zip(open_lines, rows, strict=True):
+            if row.get("error"):
+                raise RuntimeError(f"{ln} at {tilts[ln]} deg: {row['error']}")
+            ok = str(row["held"]) == "True"
+            if step == 0:
+                if ok:
+                    limit[ln] = ln[3] * TILT_MAX_DEG
+                continue
+            if ok:
+                lo[ln] = tilts[ln]
+            else:
+                hi[ln] = tilts[ln]
+        for ln in open_lines:
+            if ln not in limit and hi[ln] - lo[ln] <= TILT_RES_DEG:
+                limit[ln] = ln[3] * lo[ln]
+        step += 1
+    return limit, n_runs
 
 
 def main(argv: list[str] | None = None) -> int:
+    root = Path(__file__).resolve().parents[1]
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--quick", action="store_true", help="3 gains instead of 8")
-    ap.add_argument("--out-dir", type=Path, default=Path(__file__).resolve().parents[1] / "docs")
-    ap.add_argument("--jobs", type=int, default=1, help="worker processes (default 1)")
-    ap.add_argument("--replot", type=Path, metavar="JSONL",
-                    help="no runs: redraw from the JSON lines a previous run printed on stderr")
+    ap.add_argument("--quick", action="store_true", help="3 gains instead of 7")
+    ap.add_argument("--out-dir", type=Path, default=root / "out", help="where balance_study.md/.png go "
+                    "(default out/; docs to regenerate the docs' copies)")
+    ap.add_argument("--runs", type=Path, default=root / "out" / "balance_study_runs.csv",
+                    help="the sweep table of every run (resumed when it exists)")
+    ap.add_argument("--jobs", type=int, help="runs at a time (default: the cores)")
+    ap.add_argument("--backend", choices=("local", "ray"), default="local")
+    ap.add_argument("--address", help="ray: the cluster to join")
+    ap.add_argument("--no-progress", action="store_true")
     args = ap.parse_args(argv)
-    t0 = time.perf_counter()
-    results: Results = {}
-    if args.replot is not None:
-        for line in args.replot.read_text().splitlines():
-            r = json.loads(line)
-            results[(r["controller"], r["gain"], r["sign"])] = r["limit_deg"]
-    else:
-        jobs = sweep(args.quick)
-        with ProcessPoolExecutor(max_workers=args.jobs) as pool:
-            for job, (name, gv, lim) in zip(jobs, pool.map(_job, jobs), strict=True):
-                results[(name, gv, job[3])] = lim
-                print(json.dumps({"controller": name, "gain": gv, "sign": job[3], "limit_deg": lim}),
-                      file=sys.stderr, flush=True)
-    wall = time.perf_counter() - t0
+    args.runs.parent.mkdir(parents=True, exist_ok=True)
     args.out_dir.mkdir(parents=True, exist_ok=True)
-    table = write_table(results, args.out_dir / "balance_study.md", None if args.replot else wall)
+    t0 = time.perf_counter()
+    limits, n_runs = tilt_limits(lines(args.quick), args.runs, args.jobs, args.backend, args.address,
+                                 not args.no_progress)
+    wall = time.perf_counter() - t0
+    results: Results = {(name, None if name == "NO_CONTROL" else Gain(kp, kd).value, sign): lim
+                        for (name, kp, kd, sign), lim in limits.items()}
+    table = write_table(results, args.out_dir / "balance_study.md", wall, n_runs, args)
     print(table)
     write_plot(results, args.out_dir / "balance_study.png")
     return 0
@@ -181,7 +210,7 @@ def _rows(results: Results) -> list[tuple[str, float | None, float, float]]:
     return [(n, g, results[(n, g, 1)], results[(n, g, -1)]) for n, g in keys]
 
 
-def write_table(results: Results, path: Path, wall: float | None) -> str:
+def write_table(results: Results, path: Path, wall: float, n_runs: int, args: argparse.Namespace) -> str:
     """The markdown table of the limits."""
     lines = [
         "| controller | leader gain KP/2^KD | follower gain | largest tilt held, toes up (deg) "
@@ -195,8 +224,9 @@ def write_table(results: Results, path: Path, wall: float | None) -> str:
     lines.append("")
     lines.append(f"Tilt at {TILT_RATE_DEG_S:g} deg/s then {SETTLE_S:g} s settling, seed 0, bisection to "
                  f"{TILT_RES_DEG:g} deg, {TILT_MAX_DEG:g} deg = the top of the search (platform range "
-                 f"+-45). Generated by scripts/balance_study.py"
-                 + (f" in {wall:.0f} s." if wall is not None else " (--replot)."))
+                 f"+-45). Generated by scripts/balance_study.py ({n_runs} runs, "
+                 f"{args.backend} backend, {args.jobs or 'all the'} jobs) in {wall:.0f} s "
+                 "(runs already in the --runs table are not run again).")
     text = "\n".join(lines) + "\n"
     path.write_text(text)
     return text

@@ -165,7 +165,7 @@ def test_apply_control_accepted(rig: Rig, param, field) -> None:
         req(Op.APPLY_CONTROL, 15, rs232.PARAM_KP, 1, 1, 1),
         req(Op.READ_SENSORS, 0, rs232.PARAM_POSITION),
         req(Op.MASTER, 1, rs232.PARAM_TEST),                          # MASTER needs SCU 0
-        req(Op.MASTER, 0, 2),
+        req(Op.MASTER, 0, rs232.PARAM_SUPERVISOR, 3, 0, 0),           # supervisor D1 0..2
         req(Op.MASTER, 0, 3),
     ],
 )

@@ -247,10 +247,12 @@ s8 = rs232.s8
         (R, 1, 0, (0, 0, 0), True),
         (R, 8, 2, (255, 7, 9), True),
         (R, 3, 3, (1, 2, 3), True),
-        # MASTER: SCU 0 only; param 0 test, 1 CAN status, 2/3 invalid
+        # MASTER: SCU 0 only; param 0 test, 1 CAN status, 2 supervisor (D1 0..2), 3 invalid
         (M, 0, 0, (0, 0, 0), True),
         (M, 0, 1, (0, 0, 0), True),
-        (M, 0, 2, (0, 0, 0), False),
+        (M, 0, 2, (0, 0, 0), True),
+        (M, 0, 2, (2, 0, 0), True),
+        (M, 0, 2, (3, 0, 0), False),
         (M, 0, 3, (0, 0, 0), False),
         (M, 1, 0, (0, 0, 0), False),
     ],
@@ -444,7 +446,7 @@ def test_payload_byte_layouts() -> None:
         (lambda: cf.unpack_actuation1(bytes(7)), "Actuation1.*8 bytes, got 7"),
         (lambda: cf.unpack_actuation2(bytes(9)), "Actuation2.*8 bytes, got 9"),
         (lambda: cf.unpack_sensors1(bytes(0)), "Sensors1.*8 bytes"),
-        (lambda: cf.unpack_sensors1(bytes.fromhex("21 00 00 00 00 00 00 00")), "bits 2-0"),
+        (lambda: cf.unpack_sensors1(bytes.fromhex("23 00 00 00 00 00 00 00")), "CAN state 3"),
         (lambda: cf.unpack_sensors1(bytes.fromhex("28 00 00 00 00 00 00 00")), "index 1, expected 0"),
         (lambda: cf.unpack_sensors2(bytes.fromhex("20 00 00 00 00 00 00 00")), "index 0, expected 1"),
         (lambda: cf.unpack_sensors2(bytes.fromhex("2C 00 00 00 00 00 00 00")), "bits 2-0"),

@@ -90,7 +90,9 @@ def test_rrd_holds_every_entity_with_one_row_per_sample(run):
     assert rec.samples == ROWS and rec.closed
     rows = read_rrd_rows(rrd)
     assert set(rec.entities) <= set(rows), sorted(set(rec.entities) - set(rows))
-    wrong = {e: rows[e] for e in rec.entities if rows[e] != ROWS}
+    every = {c.path: c.every for c in rec.columns}          # slow counters: every k-th sample
+    assert set(every.values()) == {1, 5}
+    wrong = {e: rows[e] for e in rec.entities if rows[e] != -(-ROWS // every.get(e, 1))}
     assert not wrong, wrong
     # static content: robot geometry per body, platform, floor, foot outline and sensors
     entities = read_rrd_entities(rrd)
@@ -273,7 +275,8 @@ def test_real_ctrl_c_and_forgotten_close_leave_readable_files(tmp_path):
         "    twin.run_for(0.1)\n"
     )
     proc = subprocess.Popen([sys.executable, "-c", script], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                            text=True)
+                            text=True,  # default SIGINT in the child even when pytest runs with it ignored
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     try:
         assert proc.stdout.readline().strip() == "ready"
         proc.send_signal(signal.SIGINT)

@@ -18,11 +18,11 @@ import json
 import math
 import os
 import signal
-import subprocess
 import sys
 from pathlib import Path
 
 EXIT_USAGE = 2
+EXIT_SUPERVISOR = 3     # the run ended with the supervisor in safe or estop (docs/supervisor.md)
 
 
 class _Parser(argparse.ArgumentParser):
@@ -70,6 +70,7 @@ def _add_can_options(p: argparse.ArgumentParser) -> None:
 
 def build_parser() -> argparse.ArgumentParser:
     """The CLI's argument parser (exposed for the docs and the tests)."""
+    from humanoid_twin.faults import add_fault_options
     from humanoid_twin.scenarios import CONTROL_CHOICES, SCENARIOS
 
     parser = _Parser(
@@ -105,6 +106,7 @@ def build_parser() -> argparse.ArgumentParser:
                      "last line of stdout")
     run.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
     _add_can_options(run)
+    add_fault_options(run)
 
     serve = sub.add_parser(
         "serve",
@@ -119,10 +121,18 @@ def build_parser() -> argparse.ArgumentParser:
     serve.add_argument("--seed", type=int, default=0, help="random seed")
     serve.add_argument("--tilt", type=_degrees, default=0.0, help="tilt the platform slowly to DEG")
     _add_can_options(serve)
+    add_fault_options(serve)
+
+    from humanoid_twin.sweep.cli import add_sweep_parser
+
+    add_sweep_parser(sub, SCENARIOS)   # its other options are run's (main passes them through)
 
     view = sub.add_parser("view", help="open a recording in the rerun viewer",
                           description="Open FILE.rrd in the rerun viewer (same as `rerun FILE.rrd`).")
     view.add_argument("file", type=Path, help="the .rrd recording")
+    view.add_argument("--web", action="store_true",
+                      help="serve rerun's web viewer on 127.0.0.1 and print its URL (no display needed)")
+    view.add_argument("--port", type=int, default=9090, help="HTTP port of --web (default 9090)")
     return parser
 
 
@@ -138,6 +148,7 @@ def _check_writable(path: Path, what: str) -> None:
 
 def cmd_run(args: argparse.Namespace) -> int:
     """``humanoid-twin run``."""
+    from humanoid_twin.faults import supervisor_config
     from humanoid_twin.scenarios import RunOptions, ScenarioError, run
 
     out = None if args.no_record else (args.out or Path(f"{args.scenario}.rrd"))
@@ -159,6 +170,7 @@ def cmd_run(args: argparse.Namespace) -> int:
         scenario=args.scenario, duration=args.duration, T=args.T, motion=args.motion, perna=args.perna,
         out=out, can_log=args.can_log, control=args.control, tilt=args.tilt, seed=args.seed,
         progress=not args.no_progress, can_interface=args.can_interface, can_channel=args.can_channel,
+        faults=tuple(args.fault), supervisor=supervisor_config(args),
     )
     bar = None
     on_progress = None
@@ -186,7 +198,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     if args.can_log is not None:
         summary["can_log"] = str(args.can_log)
     _print_summary(summary, args.json)
-    return 0
+    return EXIT_SUPERVISOR if summary.get("mode") in ("safe", "estop") else 0
 
 
 def _print_summary(summary: dict, as_json: bool) -> None:
@@ -209,8 +221,11 @@ def cmd_serve(args: argparse.Namespace) -> int:
 
     signal.signal(signal.SIGTERM, _stop)
     signal.signal(signal.SIGINT, _stop)
+    from humanoid_twin.faults import supervisor_config
+
     return serve(tcp_port=args.tcp, host=args.host, seed=args.seed, tilt=args.tilt,
                  can_interface=args.can_interface, can_channel=args.can_channel,
+                 faults=tuple(args.fault), supervisor=supervisor_config(args),
                  should_stop=lambda: stop["flag"])
 
 
@@ -218,13 +233,31 @@ def cmd_view(args: argparse.Namespace) -> int:
     """``humanoid-twin view FILE.rrd``: the rerun viewer shipped with rerun-sdk."""
     if not args.file.is_file():
         raise _usage_error(f"no such recording: {args.file}")
-    return subprocess.call([sys.executable, "-m", "rerun", str(args.file)])
+    from humanoid_twin.recording.viewer import ViewerError, view
+
+    if not 0 < args.port < 65536:
+        raise _usage_error(f"--port {args.port}: must be 1..65535")
+    try:
+        return view(args.file, web=args.web, web_port=args.port)
+    except ViewerError as exc:
+        raise _usage_error(str(exc)) from None
+
+
+def cmd_sweep(args: argparse.Namespace) -> int:
+    """``humanoid-twin sweep``: a grid of runs into one table (humanoid_twin/sweep/, docs/sweeps.md)."""
+    from humanoid_twin.sweep.cli import sweep_command
+
+    return sweep_command(args, build_parser())
 
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``humanoid-twin`` console script."""
-    args = build_parser().parse_args(argv)
-    handler = {"run": cmd_run, "serve": cmd_serve, "view": cmd_view}[args.command]
+    parser = build_parser()
+    args, extra = parser.parse_known_args(argv)
+    if extra and args.command != "sweep":     # sweep gives run's options it does not know to every run
+        parser.error(f"unrecognized arguments: {' '.join(extra)}")
+    args.run_args = extra
+    handler = {"run": cmd_run, "serve": cmd_serve, "view": cmd_view, "sweep": cmd_sweep}[args.command]
     try:
         return handler(args)
     except KeyboardInterrupt:

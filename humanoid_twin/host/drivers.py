@@ -61,8 +61,14 @@ from humanoid_twin.protocol.rs232 import (
     PARAM_KP,
     PARAM_POSITION,
     PARAM_SPECIAL,
+    PARAM_SUPERVISOR,
     PARAM_TEST,
     PARAM_VELOCITY,
+    SUPERVISOR_ESTOP,
+    SUPERVISOR_FAULTS,
+    SUPERVISOR_MODES,
+    SUPERVISOR_READ,
+    SUPERVISOR_RESET,
     TEST_MESSAGE,
     ControlType,
     FrameError,
@@ -100,6 +106,12 @@ __all__ = [
     "applyjoint",
     "applycontrol",
     "raise_for_error",
+    "SupervisorRefused",
+    "SupervisorResult",
+    "readsupervisor",
+    "estop",
+    "reset",
+    "Supervisor",
     "HumanoidClient",
     "CanStatus",
     "STATUS_PWM",
@@ -172,6 +184,27 @@ class BadFrame(CommError):  # noqa: N818  (the names of the task's API)
     """Answers arrived but were corrupt or not the expected ones (bad BCC, first byte, echo)."""
 
 
+class SupervisorRefused(InvalidRequest):  # noqa: N818  (the names of the task's API)
+    """The Master refused an APPLY because its supervisor is in ``safe`` or ``estop``
+    (docs/supervisor.md). ``mode``, ``fault``, ``node`` name why (wire numbers)."""
+
+    def __init__(self, message: str, code: int, rx: bytes, tries: int, mode: int, fault: int, node: int):
+        super().__init__(message, code, rx, tries)
+        self.mode = mode
+        self.fault = fault
+        self.node = node
+
+    @property
+    def mode_name(self) -> str:
+        """``safe`` or ``estop``."""
+        return SUPERVISOR_MODES.get(self.mode, f"mode {self.mode}")
+
+    @property
+    def fault_name(self) -> str | None:
+        """The latched fault's name (``silent``, ``bus_off`` ...), None without one."""
+        return SUPERVISOR_FAULTS.get(self.fault)
+
+
 class PortError(CommError):
     """The serial port itself failed (could not be opened, closed, unplugged)."""
 
@@ -237,6 +270,34 @@ class ReadJointResult(NamedTuple):
     error: int
     errorstr: str
     tries: int
+
+
+class SupervisorResult(NamedTuple):
+    """``[mode, fault, node, nfaults, rx, error, errorstr, tries] = readsupervisor(H)``.
+
+    ``mode``: 0 standby, 1 self_check, 2 ready, 3 safe, 4 estop; ``fault``: the first latched
+    fault's code (0 none; 1 silent .. 7 host_link), ``node`` its board (0 Master, 1-8 Slaves),
+    ``nfaults`` how many are latched. ``None`` on error. docs/supervisor.md.
+    """
+
+    mode: int | None
+    fault: int | None
+    node: int | None
+    nfaults: int | None
+    rx: bytes
+    error: int
+    errorstr: str
+    tries: int
+
+    @property
+    def mode_name(self) -> str | None:
+        """The mode's name, None on error."""
+        return None if self.mode is None else SUPERVISOR_MODES.get(self.mode, f"mode {self.mode}")
+
+    @property
+    def fault_name(self) -> str | None:
+        """The latched fault's name, None when there is none (or on error)."""
+        return None if not self.fault else SUPERVISOR_FAULTS.get(self.fault, f"fault {self.fault}")
 
 
 class ReadSpecialResult(NamedTuple):
@@ -568,12 +629,50 @@ def applycontrol(
     return ApplyResult(*_exchange(H, frame, _EXPECT_STATUS, max_tries))
 
 
-def raise_for_error(result: tuple[Any, ...], what: str = "request") -> None:
-    """Raise the :class:`CommError` subclass matching a driver result's ``error`` (no-op if 0)."""
+def readsupervisor(H: Any, *, max_tries: int = DEFAULT_MAX_TRIES) -> SupervisorResult:
+    """``[mode, fault, node, nfaults, rx, error, errorstr, tries] = readsupervisor(H)``: the
+    Master's supervisor (``FF C2 00 00 00 BCC`` -> ``FD MODE FAULT NODE NFAULTS BCC``)."""
+    frame = encode_request(Op.MASTER, 0, PARAM_SUPERVISOR, SUPERVISOR_READ)
+    rx, err, text, tries = _exchange(H, frame, _EXPECT_DATA, max_tries)
+    if err != ErrorCode.OK:
+        return SupervisorResult(None, None, None, None, rx, err, text, tries)
+    return SupervisorResult(rx[1], rx[2], rx[3], rx[4], rx, err, text, tries)
+
+
+def estop(H: Any, *, max_tries: int = DEFAULT_MAX_TRIES) -> ApplyResult:
+    """``[rx, error, errorstr, tries] = estop(H)``: emergency stop (``FF C2 01 00 00 BCC``, FB
+    echo): PWM off on every board within one CAN round; only reads and reset accepted after."""
+    frame = encode_request(Op.MASTER, 0, PARAM_SUPERVISOR, SUPERVISOR_ESTOP)
+    return ApplyResult(*_exchange(H, frame, _EXPECT_STATUS, max_tries))
+
+
+def reset(H: Any, *, max_tries: int = DEFAULT_MAX_TRIES) -> ApplyResult:
+    """``[rx, error, errorstr, tries] = reset(H)``: clear the latched faults and run a new
+    self-check (``FF C2 02 00 00 BCC``, FB echo); after an emergency stop, power on again."""
+    frame = encode_request(Op.MASTER, 0, PARAM_SUPERVISOR, SUPERVISOR_RESET)
+    return ApplyResult(*_exchange(H, frame, _EXPECT_STATUS, max_tries))
+
+
+def raise_for_error(result: tuple[Any, ...], what: str = "request", H: Any = None) -> None:
+    """Raise the :class:`CommError` subclass matching a driver result's ``error`` (no-op if 0).
+
+    With the port ``H``, an APPLY answered FC is checked against the Master's supervisor: when
+    it is in ``safe`` or ``estop`` the error is a :class:`SupervisorRefused` naming the mode and
+    the fault."""
     err = result.error  # type: ignore[attr-defined]
     if err == ErrorCode.OK:
         return
     code = ErrorCode(err)
+    rx = result.rx  # type: ignore[attr-defined]
+    is_apply = len(rx) == 6 and rx[1] >> 6 <= Op.APPLY_CONTROL
+    if H is not None and code == ErrorCode.INVALID_REQUEST and is_apply:
+        sup = readsupervisor(H)
+        if sup.error == ErrorCode.OK and sup.mode in (3, 4):
+            fault = f", latched fault {sup.fault_name} on node {sup.node}" if sup.fault else ""
+            raise SupervisorRefused(
+                f"{what}: refused by the Master's supervisor: mode {sup.mode_name}{fault} "
+                f"(readsupervisor; reset to recover)", code, rx, result.tries,  # type: ignore[attr-defined]
+                sup.mode, sup.fault or 0, sup.node or 0)
     raise _EXC[code](f"{what}: {result.errorstr}", code, result.rx, result.tries)  # type: ignore[attr-defined]
 
 
@@ -593,6 +692,25 @@ class CanStatus(NamedTuple):
     def state_name(self) -> str:
         """``"error-active"``, ``"error-passive"`` or ``"bus-off"``."""
         return {0: "error-active", 1: "error-passive", 2: "bus-off"}.get(self.error_state, "unknown")
+
+
+class Supervisor(NamedTuple):
+    """The Master's supervisor as :meth:`HumanoidClient.supervisor` returns it."""
+
+    mode: int
+    fault: int
+    node: int
+    nfaults: int
+
+    @property
+    def mode_name(self) -> str:
+        """``standby`` / ``self_check`` / ``ready`` / ``safe`` / ``estop``."""
+        return SUPERVISOR_MODES.get(self.mode, f"mode {self.mode}")
+
+    @property
+    def fault_name(self) -> str | None:
+        """The latched fault's name, None without one."""
+        return SUPERVISOR_FAULTS.get(self.fault) if self.fault else None
 
 
 class HumanoidClient:
@@ -633,7 +751,7 @@ class HumanoidClient:
         self.stats["retries"] += max(0, result.tries - 1)
         if result.error != ErrorCode.OK:
             self.stats["failures"] += 1
-            raise_for_error(result, what)
+            raise_for_error(result, what, self.serial_port)
         return result
 
     def close(self) -> None:
@@ -729,3 +847,17 @@ class HumanoidClient:
         data = [int(t) for t in _three("types", types)]
         self._done(applycontrol(self.serial_port, scu, PARAM_CONTROLON, data, max_tries=self.max_tries),
                    f"set control SCU {scu}")
+
+    # -- supervisor (docs/supervisor.md) ---------------------------------------------------
+    def supervisor(self) -> Supervisor:
+        """``readsupervisor``: mode, latched fault, its node, number of latched faults."""
+        r = self._done(readsupervisor(self.serial_port, max_tries=self.max_tries), "readsupervisor")
+        return Supervisor(r.mode, r.fault, r.node, r.nfaults)
+
+    def estop(self) -> None:
+        """Emergency stop: PWM off on every board within one CAN round."""
+        self._done(estop(self.serial_port, max_tries=self.max_tries), "estop")
+
+    def reset(self) -> None:
+        """Clear the latched faults and run a new self-check (then power on after an estop)."""
+        self._done(reset(self.serial_port, max_tries=self.max_tries), "reset")

@@ -116,11 +116,11 @@ def servo_command(scu: int, leg_angles: Any, tables: RobotTables | None = None) 
 
 
 def _apply(H: Any, scu: int, param: int, data: Sequence[int], what: str) -> None:
-    raise_for_error(applyjoint(H, scu, param, data), f"{what} (SCU {scu})")
+    raise_for_error(applyjoint(H, scu, param, data), f"{what} (SCU {scu})", H)
 
 
 def _control(H: Any, scu: int, param: int, data: Sequence[int], what: str) -> None:
-    raise_for_error(applycontrol(H, scu, param, data), f"{what} (SCU {scu})")
+    raise_for_error(applycontrol(H, scu, param, data), f"{what} (SCU {scu})", H)
 
 
 def send_gains(H: Any, scu: int, k_scu: Any) -> None:

@@ -120,6 +120,7 @@ class MasterCan:
             s.pos[:] = pos
             s.vel[:] = vel
             s.status = status
+            s.sflags = data[0] & 0x07
             s.rx1 = True
             s.packets1 += 1
             db.update_calibration(src, status)

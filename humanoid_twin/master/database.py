@@ -61,7 +61,7 @@ class ScuSensors:
     """Sensor data of one SCU as last received over CAN (slide 32 ``struct_sensors`` entry)."""
 
     __slots__ = ("status", "pos", "vel", "current", "special", "rx1", "rx2",
-                 "packets1", "packets2", "rounds_answered", "rounds_missed", "last_rx_us")
+                 "packets1", "packets2", "rounds_answered", "rounds_missed", "last_rx_us", "sflags")
 
     def __init__(self) -> None:
         self.status = 0                          # sensors 1 byte 8 (SPEC section 3)
@@ -76,6 +76,7 @@ class ScuSensors:
         self.rounds_answered = 0                 # complete rounds with both packets
         self.rounds_missed = 0                   # complete rounds without both packets
         self.last_rx_us = -1                     # virtual time of the last sensor packet
+        self.sflags = 0                          # Sensors 1 SFlags bits 2-0 (docs/supervisor.md)
 
 
 class MasterCounters:

@@ -13,6 +13,7 @@ from typing import TYPE_CHECKING
 from humanoid_twin.master.can import MasterCan
 from humanoid_twin.master.database import Database
 from humanoid_twin.master.pic import Pic
+from humanoid_twin.master.supervisor import Supervisor, SupervisorConfig
 from humanoid_twin.master.usart import Usart
 
 if TYPE_CHECKING:
@@ -28,14 +29,17 @@ class Master:
     device side of ``link`` and starts the 250 us timer at ``clock.now_us``.
     """
 
-    def __init__(self, clock: Clock, network: CanNetwork, link: SerialLink) -> None:
+    def __init__(self, clock: Clock, network: CanNetwork, link: SerialLink,
+                 supervisor: SupervisorConfig | None = None) -> None:
         self.clock = clock
         self.network = network
         self.link = link
         self.db = Database()
         self.can = MasterCan(clock, network, self.db)
-        self.usart = Usart(clock, link, self.db, self.can)
-        self.pic = Pic(clock, self.usart, self.can, self.db)
+        # the mode supervisor (docs/supervisor.md), beyond the seeds
+        self.supervisor = Supervisor(clock, self.db, self.can, supervisor)
+        self.usart = Usart(clock, link, self.db, self.can, self.supervisor)
+        self.pic = Pic(clock, self.usart, self.can, self.db, self.supervisor)
         self.main()
 
     def main(self) -> None:

@@ -35,6 +35,7 @@ if TYPE_CHECKING:
     from humanoid_twin.clock import Clock
     from humanoid_twin.master.can import MasterCan
     from humanoid_twin.master.database import Database
+    from humanoid_twin.master.supervisor import Supervisor
     from humanoid_twin.master.usart import Usart
 
 TIMER_PERIOD_US = 250                              # slide 27
@@ -46,8 +47,10 @@ ROUND_US = SLAVE_PERIOD_US * N_SCU                 # 8 ms per round
 class Pic:
     """The Master's PIC18F258: initialisation and interrupt service (table 1)."""
 
-    def __init__(self, clock: Clock, usart: Usart, can: MasterCan, db: Database) -> None:
+    def __init__(self, clock: Clock, usart: Usart, can: MasterCan, db: Database,
+                 supervisor: Supervisor | None = None) -> None:
         self.clock = clock
+        self.supervisor = supervisor
         self.usart = usart
         self.can = can
         self.db = db
@@ -84,6 +87,8 @@ class Pic:
             if self.slave == 1:
                 if self._round_open:
                     self.db.finish_round()
+                    if self.supervisor is not None:
+                        self.supervisor.on_round()
                 self._round_open = True
             self.can.canSendMsg(self.slave, 0)
             self.slot = 1

@@ -33,9 +33,12 @@ from humanoid_twin.protocol.rs232 import (
     PARAM_KP,
     PARAM_POSITION,
     PARAM_SPECIAL,
+    PARAM_SUPERVISOR,
     PARAM_TEST,
     PARAM_VELOCITY,
     SOF,
+    SUPERVISOR_ESTOP,
+    SUPERVISOR_READ,
     TEST_MESSAGE,
     Op,
     Request,
@@ -45,6 +48,7 @@ if TYPE_CHECKING:
     from humanoid_twin.bus.serial_link import SerialLink
     from humanoid_twin.clock import Clock
     from humanoid_twin.master.can import MasterCan
+    from humanoid_twin.master.supervisor import Supervisor
 
 FRAME_GAP_US = 2_000      # more than this between two bytes of a frame: the frame is broken off
 PROCESS_US = 20           # usartProcessMsg + response build on the PIC (10 MIPS), before the 1st TX byte
@@ -59,8 +63,10 @@ _OP_MASTER = int(Op.MASTER)
 class Usart:
     """The Master's USART: receive buffer, external (request) buffer, transmit buffer."""
 
-    def __init__(self, clock: Clock, link: SerialLink, db: Database, can: MasterCan) -> None:
+    def __init__(self, clock: Clock, link: SerialLink, db: Database, can: MasterCan,
+                 supervisor: Supervisor | None = None) -> None:
         self.clock = clock
+        self.supervisor = supervisor
         self.link = link
         self.db = db
         self.can = can
@@ -213,6 +219,15 @@ class Usart:
         op, scu, param = req.op, req.scu, req.param
         d = req.data
         db = self.db
+        sup = self.supervisor
+        if sup is not None:
+            sup.host_frame()
+            if op <= _OP_APPLY_CONTROL and not sup.apply_allowed():
+                # docs/supervisor.md: in safe / estop every APPLY is refused
+                self.last_invalid = sup.refusal()
+                sup.refused += 1
+                self.usartSendStatus(MESSAGE_INVREQ)
+                return
         if op == _OP_APPLY_JOINT:
             a = db.actuators[scu]
             if param == PARAM_POSITION:
@@ -224,6 +239,8 @@ class Usart:
                 if d[1] == 1:
                     db.request_calibration(scu)
             a.invalidate()
+            if sup is not None:
+                sup.applied(op, param, d)
             self.usartSendStatus(MESSAGE_SUCCESS)
         elif op == _OP_APPLY_CONTROL:
             a = db.actuators[scu]
@@ -256,9 +273,28 @@ class Usart:
             assert op == _OP_MASTER
             if param == PARAM_TEST:
                 self.usartSendTestMsg()
+            elif param == PARAM_SUPERVISOR:
+                self._supervisor_request(d[0])
             else:
                 assert param == PARAM_CANSTATUS
                 err, tec, rec = self.can.error_status()
                 self._load_tx(rs232.data_response(err, tec, rec, db.answered_mask))
                 if err == 2:
                     self.can.canClearStatus()
+
+    def _supervisor_request(self, d1: int) -> None:
+        """MASTER param 2 (docs/supervisor.md): D1 0 read -> ``FD MODE FAULT NODE NFAULTS``,
+        1 emergency stop -> FB echo, 2 reset -> FB echo (D1 > 2 was refused by the validation)."""
+        sup = self.supervisor
+        if sup is None:
+            self.last_invalid = "this Master has no supervisor"
+            self.usartSendStatus(MESSAGE_INVREQ)
+            return
+        if d1 == SUPERVISOR_READ:
+            self._load_tx(rs232.data_response(*sup.read()))
+            return
+        if d1 == SUPERVISOR_ESTOP:
+            sup.estop()
+        else:
+            sup.reset()
+        self.usartSendStatus(MESSAGE_SUCCESS)

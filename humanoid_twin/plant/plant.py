@@ -199,6 +199,13 @@ class Plant:
         }
         self._tilt_deg = 0.0
         self._tilt_profile: Callable[[float], float] | None = None
+        # injected faults (humanoid_twin/faults.py, docs/supervisor.md): extra force noise,
+        # frozen force sensors, jammed servos
+        self._force_fault = False
+        self._force_noise_counts = 0
+        self._force_fault_rng = np.random.default_rng(ss.spawn(1)[0])
+        self._force_stuck: dict[int, list[int] | None] = {}
+        self._stuck_actuators: set[int] = set()
         self.reset()
 
     # --- state --------------------------------------------------------------------------------
@@ -346,7 +353,10 @@ class Plant:
                 raise PlantInputError(f"SCU {scu}: pulse width must be {lo}..{hi} us or None, got {p!r}")
         ctrl = self.data.ctrl
         powered = self._powered
+        stuck = self._stuck_actuators
         for (_, _, a, sign, _, _), p in zip(rows, pulses_us, strict=True):  # type: ignore[arg-type]
+            if stuck and a in stuck:
+                continue
             if p is None:
                 if powered[a]:
                     self._set_powered(a, False)
@@ -413,7 +423,73 @@ class Plant:
                 continue
             v = round(f * _COUNTS_PER_N + noise.pop())
             out.append(0 if v < 0 else (hardware.FORCE_ADC_MAX if v > hardware.FORCE_ADC_MAX else v))
+        if self._force_fault:
+            return self._faulty_forces(scu, out)
         return out
+
+    # --- injected faults (humanoid_twin/faults.py) --------------------------------------------------
+    def _faulty_forces(self, scu: int, out: list[int]) -> list[int]:
+        if scu in self._force_stuck:
+            held = self._force_stuck[scu]
+            if held is None:
+                self._force_stuck[scu] = held = list(out)
+            return list(held)
+        n = self._force_noise_counts
+        if n:
+            top = hardware.FORCE_ADC_MAX
+            extra = self._force_fault_rng.integers(-n, n + 1, size=len(out))
+            out = [min(max(v + int(e), 0), top) for v, e in zip(out, extra, strict=True)]
+        return out
+
+    def _update_force_fault(self) -> None:
+        self._force_fault = bool(self._force_noise_counts or self._force_stuck)
+
+    def set_force_noise(self, counts: int) -> None:
+        """Fault injection: add uniform noise of +-``counts`` 8-bit ADC counts to every force
+        sensor reading (seeded by the plant's seed); 0 removes it."""
+        self._sync()
+        top = hardware.FORCE_ADC_MAX
+        if isinstance(counts, bool) or not isinstance(counts, int) or not 0 <= counts <= top:
+            raise PlantInputError(f"force noise must be 0..{hardware.FORCE_ADC_MAX} counts, got {counts!r}")
+        self._force_noise_counts = counts
+        self._update_force_fault()
+
+    def set_force_stuck(self, scu: int, stuck: bool = True) -> None:
+        """Fault injection: the four force sensors of the foot of ``scu`` freeze at their next
+        reading (True) or work again (False)."""
+        self._sync()
+        if scu not in self._foot_touch_of_scu:
+            feet = sorted(self._foot_touch_of_scu)
+            raise PlantInputError(f"SCU {scu!r} has no force-sensing foot ({feet})")
+        if stuck:
+            self._force_stuck.setdefault(scu, None)
+        else:
+            self._force_stuck.pop(scu, None)
+        self._update_force_fault()
+
+    def set_servo_stuck(self, scu: int, i: int, stuck: bool = True) -> None:
+        """Fault injection: servo ``i`` (0..2) of ``scu`` jams where its shaft is now (its pulses
+        are ignored; it keeps holding that angle) until ``stuck`` is False."""
+        self._sync()
+        _check_scu(scu)
+        if not isinstance(i, int) or not 0 <= i < hardware.N_SERVOS:
+            raise PlantInputError(f"servo index must be 0..{hardware.N_SERVOS - 1}, got {i!r}")
+        qadr, _, a, _, _, _ = self._servo[scu][i]
+        if stuck:
+            self.data.ctrl[a] = float(self.data.qpos[qadr])
+            self._stuck_actuators.add(a)
+        else:
+            self._stuck_actuators.discard(a)
+
+    def set_trunk_force(self, forward_n: float) -> None:
+        """Fault injection: a horizontal force (N) on the trunk's centre of mass, world forward
+        (+x; negative: backward); 0 removes it."""
+        self._sync()
+        f = float(forward_n)
+        if not math.isfinite(f):
+            raise PlantInputError(f"trunk force must be finite, got {forward_n!r}")
+        self.data.xfrc_applied[self._trunk, :] = 0.0
+        self.data.xfrc_applied[self._trunk, 0] = f
 
     def servo_angle_deg(self, scu: int, i: int) -> float:
         """True shaft angle of servo ``i`` (0..2) of ``scu``, servo frame, degrees (ground truth)."""

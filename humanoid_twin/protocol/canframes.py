@@ -41,6 +41,9 @@ __all__ = [
     "parse_control_byte",
     "status_byte",
     "parse_status_byte",
+    "supervisor_flags",
+    "SFLAGS_WATCHDOG",
+    "SFLAGS_CAN_STATE",
     "sflags",
     "pack_actuation1",
     "unpack_actuation1",
@@ -287,31 +290,49 @@ def unpack_actuation2(data: bytes) -> tuple[tuple[int, int, int], tuple[int, int
     return (i1, i2, i3), (p1, p2, p3), d1, d2
 
 
-def pack_sensors1(src: int, pos: Sequence[int], speed: Sequence[int], status: int) -> bytes:
+def pack_sensors1(src: int, pos: Sequence[int], speed: Sequence[int], status: int, flags: int = 0) -> bytes:
     """Sensors 1 ``SFlags Pos1 Pos2 Pos3 Speed1 Speed2 Speed3 Status`` (slide 20; ``sendCanMessage``).
 
     ``src``: the slave's address; ``pos``: int8 degrees; ``speed``: mean velocity, int8 degrees
-    per 20 ms tick; ``status``: :func:`status_byte`.
+    per 20 ms tick; ``status``: :func:`status_byte`. ``flags``: the supervisor flags in SFlags
+    bits 2-0 (:func:`supervisor_flags`; 0 on a healthy board, so the seed's bytes are unchanged).
     """
     try:
         if not 0 <= src <= 15:
             raise ValueError(f"source address must be 0..15, got {src!r}")
+        if not 0 <= flags <= 7 or flags & SFLAGS_CAN_STATE == 3:
+            raise ValueError(f"supervisor flags must be 0..7 with CAN state 0..2, got {flags!r}")
         p1, p2, p3 = pos
         v1, v2, v3 = speed
-        return _SEN1.pack(src << 4, p1, p2, p3, v1, v2, v3, status)
+        return _SEN1.pack((src << 4) | flags, p1, p2, p3, v1, v2, v3, status)
     except (struct.error, TypeError, ValueError) as exc:
         raise _pack_error("Sensors1", exc, src=src, pos=pos, speed=speed, status=status) from None
 
 
 def unpack_sensors1(data: bytes) -> tuple[int, int, tuple[int, int, int], tuple[int, int, int], int]:
     """Sensors 1 payload -> ``(src, index, (pos1, pos2, pos3), (speed1, speed2, speed3), status)``
-    (``canReceiveMsg`` on the Master). ``PayloadError`` if SFlags bits 2-0 are not zero or its
-    index is not 0."""
+    (``canReceiveMsg`` on the Master). ``PayloadError`` if its index is not 0 or SFlags bits 1-0
+    are 3. Bits 2-0 are the supervisor flags (:func:`supervisor_flags`)."""
     try:
         sf, p1, p2, p3, v1, v2, v3, st = _SEN1.unpack(data)
     except struct.error:
         raise _length_error("Sensors1", data) from None
-    return _split_sflags(sf, 0, "Sensors1"), 0, (p1, p2, p3), (v1, v2, v3), st
+    if sf & SFLAGS_CAN_STATE == 3:
+        raise PayloadError(f"Sensors1: SFlags 0x{sf:02X} carries CAN state 3 (0..2 only)")
+    return _split_sflags(sf & ~0x07, 0, "Sensors1"), 0, (p1, p2, p3), (v1, v2, v3), st
+
+
+# Sensors 1 SFlags bits 2-0 (zero in seed 002 slide 20): the supervisor flags of the Slave
+# (docs/supervisor.md). Bit 2: the CAN watchdog holds the last reference; bits 1-0: the Slave's
+# CAN error state (0 error-active, 1 error-passive, 2 bus-off since its last tick).
+SFLAGS_WATCHDOG = 0x04
+SFLAGS_CAN_STATE = 0x03
+
+
+def supervisor_flags(data: bytes | bytearray) -> tuple[bool, int]:
+    """``(watchdog_holding, can_state)`` from a Sensors 1 payload's SFlags bits 2-0."""
+    sf = data[0]
+    return bool(sf & SFLAGS_WATCHDOG), sf & SFLAGS_CAN_STATE
 
 
 def pack_sensors2(src: int, curr: Sequence[int], data4: Sequence[int]) -> bytes:

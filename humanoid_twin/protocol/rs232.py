@@ -36,6 +36,12 @@ __all__ = [
     "PARAM_CONTROLON",
     "PARAM_TEST",
     "PARAM_CANSTATUS",
+    "PARAM_SUPERVISOR",
+    "SUPERVISOR_READ",
+    "SUPERVISOR_ESTOP",
+    "SUPERVISOR_RESET",
+    "SUPERVISOR_MODES",
+    "SUPERVISOR_FAULTS",
     "ControlType",
     "TEST_MESSAGE",
     "N_SCU",
@@ -87,6 +93,16 @@ PARAM_KD = 2
 PARAM_CONTROLON = 3
 PARAM_TEST = 0          # MASTER
 PARAM_CANSTATUS = 1
+PARAM_SUPERVISOR = 2    # MASTER param 0b10: the mode supervisor (docs/supervisor.md; beyond the seeds)
+
+# MASTER / PARAM_SUPERVISOR request, D1 (docs/supervisor.md "Serial bytes"):
+SUPERVISOR_READ = 0     # -> FD MODE FAULTCODE NODE NFAULTS BCC
+SUPERVISOR_ESTOP = 1    # -> FB echo; PWM off on every board within one CAN round
+SUPERVISOR_RESET = 2    # -> FB echo; a new self-check
+# The read answer's MODE and FAULTCODE bytes (docs/supervisor.md): wire number -> name.
+SUPERVISOR_MODES: dict[int, str] = {0: "standby", 1: "self_check", 2: "ready", 3: "safe", 4: "estop"}
+SUPERVISOR_FAULTS: dict[int, str] = {1: "silent", 2: "bus_off", 3: "slave_can", 4: "over_travel",
+                                     5: "deadline", 6: "balance", 7: "host_link"}
 
 
 class ControlType(IntEnum):
@@ -300,8 +316,10 @@ def invalid_reason(req: Request) -> str | None:
     if op == Op.MASTER:
         if scu != 0:
             return f"MASTER operation needs SCU 0, got SCU {scu}"
-        if param > PARAM_CANSTATUS:
-            return f"MASTER parameter {param} is invalid (0 test, 1 CAN status)"
+        if param > PARAM_SUPERVISOR:
+            return f"MASTER parameter {param} is invalid (0 test, 1 CAN status, 2 supervisor)"
+        if param == PARAM_SUPERVISOR and d1 > SUPERVISOR_RESET:
+            return f"supervisor D1 must be 0 read, 1 emergency stop or 2 reset, got {d1}"
         return None
     if not 1 <= scu <= N_SCU:
         return f"SCU {scu} out of range 1..{N_SCU}"

@@ -18,6 +18,7 @@ from humanoid_twin.recording.paths import (
     FEET,
     ROBOT,
     SERIAL,
+    SUPERVISOR,
     WORLD,
     foot_side,
     scu_path,
@@ -29,17 +30,29 @@ __all__ = ["default_blueprint", "LEG_SCUS"]
 LEG_SCUS: tuple[int, ...] = (1, 2, 3, 4)     # right leg, left leg, right hip, left hip
 
 
+# The 3D eye: framed on the robot (about 0.5 m tall, standing at the origin, facing +x), seen from
+# its front right, a little above the hips, instead of rerun's default framing of the whole floor.
+EYE_POSITION = (0.70, -0.60, 0.45)
+EYE_TARGET = (0.0, 0.0, 0.22)
+# Legends: in the top-left corner of each plot, where the joint plots start from rest.
+_LEGEND = rrb.PlotLegend(corner="LeftTop", visible=True)
+
+
+def _plot(name: str, origin: str, **kw: object) -> rrb.TimeSeriesView:
+    return rrb.TimeSeriesView(name=name, origin=origin, plot_legend=_LEGEND, **kw)
+
+
 def _joint_title(scu: int, i: int) -> str:
     return f"{SERVO_JOINTS[scu][i]} (SCU {scu} servo {i + 1})"
 
 
 def _joint_grid(scus: Sequence[int], name: str) -> rrb.Grid:
     views = [
-        rrb.TimeSeriesView(name=_joint_title(scu, i), origin=f"{servo_path(scu, i)}/position")
+        _plot(_joint_title(scu, i), f"{servo_path(scu, i)}/position")
         for scu in scus
         for i in range(N_SERVOS)
     ]
-    return rrb.Grid(*views, grid_columns=3, name=name)
+    return rrb.Grid(*views, grid_columns=2, name=name)
 
 
 def default_blueprint(
@@ -51,7 +64,10 @@ def default_blueprint(
     upper = [s for s in scus if s not in LEG_SCUS]
     feet = [s for s in scus if s in FOOT_OF_SCU]
 
-    robot_3d = rrb.Spatial3DView(name="Robot", origin=WORLD)
+    robot_3d = rrb.Spatial3DView(
+        name="Robot", origin=WORLD,
+        eye_controls=rrb.EyeControls3D(position=EYE_POSITION, look_target=EYE_TARGET, eye_up=(0.0, 0.0, 1.0)),
+    )
     foot_views = [
         rrb.Spatial2DView(name=f"{foot_side(s).capitalize()} foot CoP (mm)", origin=f"{FEET}/{foot_side(s)}")
         for s in feet
@@ -60,7 +76,7 @@ def default_blueprint(
 
     currents = rrb.Grid(
         *[
-            rrb.TimeSeriesView(
+            _plot(
                 name=f"{scu_path(s).split('/')[1]} current (0..100)",
                 origin=scu_path(s),
                 contents=[f"{servo_path(s, i)}/current" for i in range(N_SERVOS)],
@@ -72,13 +88,13 @@ def default_blueprint(
     )
     forces = rrb.Grid(
         *[
-            rrb.TimeSeriesView(
+            _plot(
                 name=f"{foot_side(s)} foot sensors, firmware 8-bit", origin=f"{scu_path(s)}/force/adc"
             )
             for s in feet
         ],
         *[
-            rrb.TimeSeriesView(
+            _plot(
                 name=f"{foot_side(s)} foot sensors, plant (N)", origin=f"{scu_path(s)}/force/newton"
             )
             for s in feet
@@ -88,31 +104,31 @@ def default_blueprint(
     )
     cop = rrb.Grid(
         *[
-            rrb.TimeSeriesView(
+            _plot(
                 name=f"{foot_side(s)} CoP {axis} (mm): firmware vs truth", origin=f"{scu_path(s)}/cop/{axis}"
             )
             for s in feet
             for axis in ("x", "y")
         ],
-        rrb.TimeSeriesView(name="CoP margin (mm)", origin=f"{ROBOT}/cop_margin_mm"),
-        rrb.TimeSeriesView(name="trunk tilt (deg)", origin=f"{ROBOT}/trunk_tilt_deg"),
-        rrb.TimeSeriesView(name="CoM height (mm)", origin=f"{ROBOT}/com_height_mm"),
-        rrb.TimeSeriesView(name="fell", origin=f"{ROBOT}/fell"),
-        rrb.TimeSeriesView(name="platform tilt (deg, toes up +)", origin=f"{ROBOT}/platform_tilt_deg"),
-        rrb.TimeSeriesView(name="total normal force (N)", origin=f"{ROBOT}/total_force_n"),
+        _plot(name="CoP margin (mm)", origin=f"{ROBOT}/cop_margin_mm"),
+        _plot(name="trunk tilt (deg)", origin=f"{ROBOT}/trunk_tilt_deg"),
+        _plot(name="CoM height (mm)", origin=f"{ROBOT}/com_height_mm"),
+        _plot(name="fell", origin=f"{ROBOT}/fell"),
+        _plot(name="platform tilt (deg, toes up +)", origin=f"{ROBOT}/platform_tilt_deg"),
+        _plot(name="total normal force (N)", origin=f"{ROBOT}/total_force_n"),
         grid_columns=2,
         name="CoP & balance",
     )
     counters = rrb.Grid(
-        rrb.TimeSeriesView(name="CAN frames/s", origin=f"{CAN}/frames_per_s"),
-        rrb.TimeSeriesView(name="CAN bus load (%)", origin=f"{CAN}/load_percent"),
-        rrb.TimeSeriesView(
+        _plot(name="CAN frames/s", origin=f"{CAN}/frames_per_s"),
+        _plot(name="CAN bus load (%)", origin=f"{CAN}/load_percent"),
+        _plot(
             name="CAN errors", origin=CAN, contents=[f"{CAN}/error_frames", f"{CAN}/frames_dropped"]
         ),
-        rrb.TimeSeriesView(name="Master CAN controller (state, TEC, REC)", origin=f"{CAN}/master_controller"),
-        rrb.TimeSeriesView(name="serial bytes", origin=SERIAL),
+        _plot(name="Master CAN controller (state, TEC, REC)", origin=f"{CAN}/master_controller"),
+        _plot(name="serial bytes", origin=SERIAL),
         *[
-            rrb.TimeSeriesView(name=f"Master {p.split('/', 1)[1].replace('_', ' ')}", origin=p)
+            _plot(name=f"Master {p.split('/', 1)[1].replace('_', ' ')}", origin=p)
             for p in master_entities
         ],
         grid_columns=2,
@@ -120,7 +136,7 @@ def default_blueprint(
     )
     boards = rrb.Grid(
         *[
-            rrb.TimeSeriesView(
+            _plot(
                 name=f"{scu_path(s).split('/')[1]}: PWM, calibrated, deadline violations",
                 origin=scu_path(s),
                 contents=[f"{scu_path(s)}/status", f"{scu_path(s)}/deadline_violations"],
@@ -130,18 +146,28 @@ def default_blueprint(
         grid_columns=2,
         name="Boards",
     )
+    supervisor = rrb.Vertical(
+        _plot("Supervisor mode (0 standby 1 self_check 2 ready 3 safe 4 estop), faults latched",
+              f"{SUPERVISOR}/mode"),
+        rrb.TextLogView(name="Supervisor events", origin=f"{SUPERVISOR}/events"),
+        name="Supervisor",
+    )
     tabs: list[rrb.Container] = []
-    if legs:
-        tabs.append(_joint_grid(legs, "Leg joints"))
+    # one tab per leg (its hip board and its leg board: 6 joints, 3 rows), so each plot is tall
+    # enough for its legend to name all five series beside the curves
+    for side, pair in (("Right leg joints", (3, 1)), ("Left leg joints", (4, 2))):
+        mine = [s for s in pair if s in legs]
+        if mine:
+            tabs.append(_joint_grid(mine, side))
     tabs += [currents]
     if feet:
         tabs += [forces, cop]
-    tabs += [counters, boards]
+    tabs += [counters, supervisor, boards]
     if upper:
         tabs.append(_joint_grid(upper, "Upper body"))
     return rrb.Blueprint(
         rrb.Horizontal(left, rrb.Tabs(*tabs), column_shares=[2, 3]),
-        rrb.TimePanel(timeline="sim_time"),
+        rrb.TimePanel(timeline="sim_time", state="collapsed"),
         rrb.BlueprintPanel(state="collapsed"),
         rrb.SelectionPanel(state="collapsed"),
     )

@@ -15,6 +15,7 @@ __all__ = [
     "CAN",
     "SERIAL",
     "MASTER",
+    "SUPERVISOR",
     "scu_path",
     "servo_path",
     "foot_side",
@@ -36,6 +37,7 @@ ROBOT = "robot"                       # trunk tilt, CoM height, CoP margin, fell
 CAN = "bus/can"
 SERIAL = "bus/serial"
 MASTER = "master"                     # Master.stats() counters
+SUPERVISOR = "supervisor"             # the Master supervisor: mode series, events (TextLog)
 
 
 def scu_path(scu: int) -> str:

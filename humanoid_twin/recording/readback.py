@@ -125,3 +125,22 @@ def verify_rrd(path: str | pathlib.Path, timeout_s: float = 120.0) -> None:
     )
     if res.returncode != 0:
         raise RrdReadError(f"rerun rrd verify {str(p)!r} failed: {(res.stderr or res.stdout).strip()}")
+
+
+def compact_rrd(path: str | pathlib.Path, timeout_s: float = 600.0) -> tuple[int, int]:
+    """Rewrite ``path`` with rerun's own ``rerun rrd optimize`` (chunks merged into fewer, larger
+    ones: the viewer loads it faster and it is smaller). Written to a temporary file beside it and
+    renamed over it only when rerun succeeded, so the original survives any failure (then
+    ``RrdReadError``). Returns the sizes (bytes) before and after."""
+    p = pathlib.Path(path)
+    before = p.stat().st_size
+    tmp = p.with_name(f".{p.name}.compact.rrd")
+    try:
+        res = subprocess.run([str(_rerun_cli()), "rrd", "optimize", str(p), "-o", str(tmp)],
+                             capture_output=True, text=True, timeout=timeout_s)
+        if res.returncode != 0 or not tmp.is_file():
+            raise RrdReadError(f"rerun rrd optimize {str(p)!r} failed: {(res.stderr or res.stdout).strip()}")
+        os.replace(tmp, p)
+    finally:
+        tmp.unlink(missing_ok=True)
+    return before, p.stat().st_size

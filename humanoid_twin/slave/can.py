@@ -31,6 +31,7 @@ from humanoid_twin.hardware import MASTER, PWM_BUSY_US, PWM_PERIOD_US
 from humanoid_twin.protocol.canframes import (
     OP_ACTUATION,
     OP_SENSORS,
+    SFLAGS_WATCHDOG,
     PayloadError,
     can_id,
     pack_sensors1,
@@ -75,6 +76,9 @@ class SlaveCan:
         "tx_silent",
         "bus_off_recoveries",
         "last_rx_us",
+        "watchdog",
+        "bus_off_seen",
+        "on_stop",
     )
 
     def __init__(self, address: int, clock: Clock, db: Global, phase_us: int) -> None:
@@ -103,6 +107,12 @@ class SlaveCan:
         self.tx_silent = 0               # packets left unanswered (PWM window)
         self.bus_off_recoveries = 0
         self.last_rx_us = -1
+        # supervisor additions (docs/supervisor.md): the CAN watchdog holds the last reference
+        # (set by the main loop), a bus-off recovered this tick, and the category-0 stop the
+        # board runs at once when an actuation packet switches its PWM off
+        self.watchdog = False
+        self.bus_off_seen = False
+        self.on_stop: Any = None
         self.prepareSensorPackets()
 
     def initCan(self, network: Any) -> None:
@@ -161,7 +171,11 @@ class SlaveCan:
             ctl[1].type = (control >> 2) & 3
             ctl[2].type = (control >> 4) & 3
             ctl[2].kd = kd3
-            act.sysStatus.pwm = bool(control & 0x80)
+            pwm = bool(control & 0x80)
+            if not pwm and act.sysStatus.pwm and self.on_stop is not None:
+                act.sysStatus.pwm = False
+                self.on_stop()                     # PWM off now, not at the next tick
+            act.sysStatus.pwm = pwm
             calib = bool(control & 0x40)
             if calib and not act.sysStatus.calib:
                 # Calib request 0 -> 1: a new calibration. Report "not calibrated" from this
@@ -197,6 +211,7 @@ class SlaveCan:
         if c is not None and c.state == BUS_OFF and not getattr(c, "recovering", False):
             c.clear_status()
             self.bus_off_recoveries += 1
+            self.bus_off_seen = True
             return True
         return False
 
@@ -207,8 +222,15 @@ class SlaveCan:
         sv = s.servo
         fin = st.motionFin
         status = status_byte(st.pwm, st.calib, st.deadlineError, st.motionFinAll, st.motionFinOne, fin)
+        flags = SFLAGS_WATCHDOG if self.watchdog else 0
+        c = self.controller
+        if self.bus_off_seen:
+            flags |= 2
+        elif c is not None:
+            flags |= c.error_state_code
         self.payload[0] = pack_sensors1(
-            self.address, (sv[0].pos, sv[1].pos, sv[2].pos), (sv[0].vel, sv[1].vel, sv[2].vel), status
+            self.address, (sv[0].pos, sv[1].pos, sv[2].pos), (sv[0].vel, sv[1].vel, sv[2].vel), status,
+            flags,
         )
         self.payload[1] = pack_sensors2(
             self.address, (sv[0].current, sv[1].current, sv[2].current), s.special

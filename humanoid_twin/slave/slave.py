@@ -35,7 +35,12 @@ from humanoid_twin.slave.pic2 import Pic2
 from humanoid_twin.slave.servo import LOCOMOTION_CONTROL, Calibration, ServoControl
 from humanoid_twin.slave.trajectory import Trajectory
 
-__all__ = ["LEG_SIGNS", "MOTION_FIN_TOL_DEG", "MOTION_FIN_STILL_TICKS", "Slave"]
+__all__ = ["LEG_SIGNS", "MOTION_FIN_TOL_DEG", "MOTION_FIN_STILL_TICKS", "WATCHDOG_TICKS", "Slave"]
+
+# CAN watchdog (docs/supervisor.md): no actuation packet for this many ticks -> the board holds
+# its last reference (it keeps driving the last actuation it received) and says so in SFlags
+# bit 2 of its Sensors 1 packets, until a packet arrives again.
+WATCHDOG_TICKS = 5
 
 # Servo angle -> kinematic angle of the leg seen from the foot (docs/firmware.md, "DATA"):
 # (foot lateral, foot front, knee) of leg boards 1 and 2. A firmware constant per board, as the
@@ -125,6 +130,14 @@ class Slave:
         self.calib.reset()
         self.pic.initPic()
         self.can.initCan(self.network)
+        self.can.on_stop = self.emergency_stop
+        self.can.prepareSensorPackets()
+
+    def emergency_stop(self) -> None:
+        """Category-0 stop (docs/supervisor.md): an actuation packet switched the PWM off while it
+        was on; the pulses stop at once (not at the next tick) and the status says PWM off."""
+        self.pic.statusPWM(False)
+        self.sensors.sysStatus.pwm = False
         self.can.prepareSensorPackets()
 
     # -- fault injection ----------------------------------------------------------------------------
@@ -168,7 +181,10 @@ class Slave:
         late = now > self._due_us
         if late:
             self.deadline_violations += 1
-        self.can.checkCan()
+        can_ = self.can
+        can_.checkCan()
+        last = can_.last_rx_us
+        can_.watchdog = now - (last if last > 0 else 0) >= WATCHDOG_TICKS * PWM_PERIOD_US
         pic = self.pic
         pic.updateServoMeasures()
         pic.finalizeServoMeasures()
@@ -242,7 +258,8 @@ class Slave:
         st.filter = pic.filter_on
         st.calib = done
         st.deadlineError = late
-        self.can.prepareSensorPackets()
+        can_.prepareSensorPackets()
+        can_.bus_off_seen = False
         dt = time.perf_counter_ns() - t0 - (self.plant.step_ns_total - step0)  # not the board's task time
         self.task_ns_total += dt
         if dt > self.task_ns_max:

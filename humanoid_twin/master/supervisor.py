@@ -1,0 +1,336 @@
+"""Module SUPERVISOR of the Master: modes, fault detection, emergency stop (docs/supervisor.md).
+
+Beyond the seeds: the 2006 Master (seed 000 section 2) forwards bytes and never judges them, so a
+bus-off Master or a silent Slave fails silently. The hexapod thesis (seed 004) asks for what a
+robot lab adds around such a system: a mode machine, a safe state and an emergency stop. This
+module is that addition, inside the Master firmware, on the Master's own data only (its global
+database, its CAN controller and the bytes the host sends); every timer counts simulated time.
+
+Modes (the numbers are the wire's, ``FD MODE ...``)::
+
+    standby 0 --PWM on requested--> self_check 1 --every Slave answers, PWM on, calibrated--> ready 2
+    any mode but estop --fault--> safe 3 (latched)       any mode --estop--> estop 4
+    safe / estop --reset--> self_check 1                  ready --PWM off on every board--> standby 0
+
+It is called from three places: :meth:`on_request` by ``usartProcessMsg`` for every valid host
+request (it may refuse an APPLY, or answer the supervisor request itself), :meth:`on_round` by
+the timer interrupt when a CAN schedule round closes (every 8 ms: the detection), and nothing
+else: it puts nothing on the CAN bus of its own (an emergency stop only clears the PWM bit of
+the actuation packets the schedule already sends).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any, NamedTuple
+
+from humanoid_twin.bus.network import BUS_OFF
+from humanoid_twin.clock import US_PER_S
+from humanoid_twin.hardware import FOOT_OF_SCU, FORCE_SENSOR_XY_MM, N_SCU, PWM_PERIOD_US
+from humanoid_twin.protocol.canframes import SFLAGS_CAN_STATE
+from humanoid_twin.protocol.rs232 import SUPERVISOR_FAULTS, SUPERVISOR_MODES
+from humanoid_twin.slave.data import calcCoP
+
+if TYPE_CHECKING:
+    from humanoid_twin.clock import Clock
+    from humanoid_twin.master.can import MasterCan
+    from humanoid_twin.master.database import Database
+
+__all__ = [
+    "STANDBY", "SELF_CHECK", "READY", "SAFE", "ESTOP", "MODE_NAMES",
+    "SILENT", "BUS_OFF_FAULT", "SLAVE_CAN", "OVER_TRAVEL", "DEADLINE", "BALANCE", "HOST_LINK",
+    "FAULT_NAMES", "Fault", "SupervisorConfig", "Supervisor",
+]
+
+# --- modes (wire numbers) ------------------------------------------------------------------------
+STANDBY = 0
+SELF_CHECK = 1
+READY = 2
+SAFE = 3
+ESTOP = 4
+MODE_NAMES: dict[int, str] = SUPERVISOR_MODES
+
+# --- faults (wire codes, JSON names) ----------------------------------------------------------------
+SILENT = 1
+BUS_OFF_FAULT = 2
+SLAVE_CAN = 3
+OVER_TRAVEL = 4
+DEADLINE = 5
+BALANCE = 6
+HOST_LINK = 7
+FAULT_NAMES: dict[int, str] = SUPERVISOR_FAULTS
+
+ROUND_US = 8_000                 # one CAN schedule round (module PIC: 8 slaves x 1 ms)
+_STATUS_PWM = 0x80               # Sensors 1 status byte bits (seed 002 slide 20)
+_STATUS_CALIB = 0x40
+_STATUS_DEADLINE = 0x20
+_OP_APPLY_JOINT = 0
+_OP_APPLY_CONTROL = 1
+_PARAM_SPECIAL = 3
+
+# The sensor rectangle of a foot (table 12, mm): the edge the firmware's CoP can reach.
+_XS = [p[0] for p in FORCE_SENSOR_XY_MM]
+_YS = [p[1] for p in FORCE_SENSOR_XY_MM]
+SENSOR_X_MIN, SENSOR_X_MAX = min(_XS), max(_XS)
+SENSOR_Y_MIN, SENSOR_Y_MAX = min(_YS), max(_YS)
+
+
+class Fault(NamedTuple):
+    """One detected fault: virtual time, wire code, node (0 Master, 1-8 Slaves)."""
+
+    t_us: int
+    code: int
+    node: int
+
+    @property
+    def name(self) -> str:
+        """The JSON name (``silent``, ``bus_off`` ...)."""
+        return FAULT_NAMES[self.code]
+
+    def as_dict(self) -> dict[str, Any]:
+        """``{"t_s", "code", "name", "node"}`` (the run summary's ``faults`` entries)."""
+        return {"t_s": round(self.t_us / US_PER_S, 6), "code": self.code, "name": self.name,
+                "node": self.node}
+
+
+@dataclass
+class SupervisorConfig:
+    """Detection thresholds (docs/supervisor.md gives the reason for each default)."""
+
+    silent_rounds: int = 3           # a board with no packet for this many rounds is silent
+    deadline_ticks: int = 5          # deadline bit held for this many Slave ticks
+    over_travel_deg: int = 90        # |measured position| beyond this (the servos' -90..90)
+    balance_margin_mm: int = 3       # CoP of every loaded foot this close to its sensor rectangle
+    balance_hold_ms: int = 100       # ... for this long (or no foot loaded for this long)
+    balance_calib_load: int = 15     # 7-bit counts a sensor carried at calibration (host/cop.py)
+    host_link_ms: int | None = None  # no valid host frame for this long while ready: off (None)
+
+    def __post_init__(self) -> None:
+        for name in ("silent_rounds", "deadline_ticks", "balance_hold_ms"):
+            if getattr(self, name) < 1:
+                raise ValueError(f"SupervisorConfig.{name} must be >= 1, got {getattr(self, name)!r}")
+        if self.host_link_ms is not None and self.host_link_ms <= 0:
+            raise ValueError(f"SupervisorConfig.host_link_ms must be > 0 or None, got {self.host_link_ms!r}")
+
+
+Listener = Callable[[str, int, Any], None]
+
+
+class Supervisor:
+    """The Master's mode supervisor: ``Supervisor(clock, db, can, config)``.
+
+    ``mode`` (wire number), ``faults`` (every fault detected, in order; the first since the last
+    reset is the latched one), ``listeners``: callables ``(kind, t_us, value)`` told of every
+    ``"mode"`` change (value: the new mode) and ``"fault"`` (value: the :class:`Fault`).
+    """
+
+    def __init__(self, clock: Clock, db: Database, can: MasterCan,
+                 config: SupervisorConfig | None = None) -> None:
+        self.clock = clock
+        self.db = db
+        self.can = can
+        self.config = config or SupervisorConfig()
+        self.mode = STANDBY
+        self.faults: list[Fault] = []
+        self.latched: list[Fault] = []        # faults since the last reset (the first is reported)
+        self.listeners: list[Listener] = []
+        self.refused = 0                      # APPLY requests answered FC by the supervisor
+        self.last_host_us = 0
+        self._seen: set[tuple[int, int]] = set()
+        self._packets = {k: 0 for k in range(1, N_SCU + 1)}
+        self._quiet_rounds = {k: 0 for k in range(0, N_SCU + 1)}
+        self._master_sent = 0
+        self._deadline_since: dict[int, int | None] = {k: None for k in range(1, N_SCU + 1)}
+        self._balance_since: int | None = None
+
+    # -- what the host sees -----------------------------------------------------------------------
+    @property
+    def mode_name(self) -> str:
+        """``standby`` / ``self_check`` / ``ready`` / ``safe`` / ``estop``."""
+        return MODE_NAMES[self.mode]
+
+    def read(self) -> tuple[int, int, int, int]:
+        """``(MODE, FAULTCODE, NODE, NFAULTS)`` of the read-supervisor answer: the first latched
+        fault (0, 0 when none) and the number latched since the last reset (capped at 255)."""
+        if self.latched:
+            f = self.latched[0]
+            return self.mode, f.code, f.node, min(len(self.latched), 255)
+        return self.mode, 0, 0, 0
+
+    def apply_allowed(self) -> bool:
+        """False in ``safe`` and ``estop``: an APPLY is answered FC (reads always go through)."""
+        return self.mode != SAFE and self.mode != ESTOP
+
+    def refusal(self) -> str:
+        """Why an APPLY is refused now (for the Master's ``last_invalid``)."""
+        mode, code, node, _ = self.read()
+        fault = f", fault {FAULT_NAMES[code]} node {node}" if code else ""
+        return f"supervisor in {MODE_NAMES[mode]}{fault}: APPLY refused"
+
+    # -- requests from the host (usartProcessMsg) ------------------------------------------------
+    def host_frame(self) -> None:
+        """A valid host frame arrived (the host_link watchdog)."""
+        self.last_host_us = self.clock.now_us
+
+    def applied(self, op: int, param: int, data: tuple[int, int, int]) -> None:
+        """An APPLY was accepted: a PWM-on request starts the self-check; PWM off on every board
+        in ``ready`` goes back to ``standby``."""
+        if op != _OP_APPLY_JOINT or param != _PARAM_SPECIAL:
+            return
+        if data[0] == 1:
+            if self.mode == STANDBY:
+                self._set_mode(SELF_CHECK)
+        elif self.mode in (READY, SELF_CHECK) and not any(a.pwm for a in self.db.actuators.values()):
+            self._set_mode(STANDBY)
+
+    def estop(self) -> None:
+        """Emergency stop, category 0: PWM off in every board's actuation data (the schedule sends
+        it to each board within one 8 ms round; the Slave switches its pulses off on receipt)."""
+        for a in self.db.actuators.values():
+            if a.pwm:
+                a.pwm = False
+                a.invalidate()
+        self._set_mode(ESTOP)
+
+    def reset(self) -> None:
+        """Reset: forget the latched faults and run a new self-check (from any mode)."""
+        self.latched.clear()
+        self._seen.clear()
+        for k in self._quiet_rounds:
+            self._quiet_rounds[k] = 0
+        for k in self._deadline_since:
+            self._deadline_since[k] = None
+        self._balance_since = None
+        self._set_mode(SELF_CHECK)
+
+    # -- detection (timer interrupt, end of each CAN round) ------------------------------------
+    def on_round(self) -> None:
+        """A CAN schedule round closed: check every fault rule, then the self-check."""
+        if self.mode == ESTOP:
+            return
+        now = self.clock.now_us
+        cfg = self.config
+        db = self.db
+        ctl = self.can.drivers.controller
+        master_down = False
+        # the Master's own CAN: bus-off, or nothing of its own got on the wire for N rounds
+        if ctl.state == BUS_OFF:
+            self._fault(BUS_OFF_FAULT, 0, now)
+            master_down = True
+        sent = ctl.frames_sent
+        q = self._quiet_rounds
+        q[0] = q[0] + 1 if sent == self._master_sent else 0
+        self._master_sent = sent
+        if q[0] >= cfg.silent_rounds and not master_down:
+            self._fault(SILENT, 0, now)
+        # a round in which the Master got nothing on the wire says nothing about the Slaves
+        # (they only answer the Master's packets): their silence is not counted then
+        master_down = master_down or q[0] >= 1
+        hold_us = (cfg.deadline_ticks - 1) * PWM_PERIOD_US
+        for k, s in db.sensors.items():
+            n = s.packets1 + s.packets2
+            if not master_down:
+                q[k] = q[k] + 1 if n == self._packets[k] else 0
+            self._packets[k] = n
+            if master_down:
+                continue
+            # silent: a board heard before, or any board once the self-check has started
+            # (a board never heard in standby may simply not be fitted: a bench Master)
+            if q[k] >= cfg.silent_rounds and (s.last_rx_us >= 0 or self.mode != STANDBY):
+                self._fault(SILENT, k, now)
+                continue
+            if s.sflags & SFLAGS_CAN_STATE and now - s.last_rx_us <= ROUND_US:   # a fresh report
+                self._fault(SLAVE_CAN, k, now)
+            if s.status & _STATUS_DEADLINE:
+                since = self._deadline_since[k]
+                if since is None:
+                    self._deadline_since[k] = s.last_rx_us
+                elif s.last_rx_us - since >= hold_us:
+                    self._fault(DEADLINE, k, now)
+            else:
+                self._deadline_since[k] = None
+        if self.mode == READY:
+            lim = cfg.over_travel_deg
+            for k, s in db.sensors.items():
+                if s.status & _STATUS_PWM:
+                    for p in s.pos:
+                        if p > lim or p < -lim:
+                            self._fault(OVER_TRAVEL, k, now)
+                            break
+            self._check_balance(now)
+            if cfg.host_link_ms is not None and now - self.last_host_us > cfg.host_link_ms * 1000:
+                self._fault(HOST_LINK, 0, now)
+        if self.mode == SELF_CHECK and self._all_ready(now):
+            self._set_mode(READY)
+
+    def _all_ready(self, now: int) -> bool:
+        want = _STATUS_PWM | _STATUS_CALIB
+        for s in self.db.sensors.values():
+            if s.last_rx_us < 0 or now - s.last_rx_us > 2 * ROUND_US or s.status & want != want:
+                return False
+        return True
+
+    def foot_cop_mm(self, scu: int) -> tuple[int, int] | None:
+        """The Master's firmware CoP ``(x, y)`` (mm, foot frame) of leg board ``scu``: ``calcCoP``
+        on the forces of its last Sensors 2 packet, each taken as ``reading - 128 + calib_load``
+        7-bit counts (as host/cop.py does); None when the foot is unloaded."""
+        load = self.config.balance_calib_load
+        w = [max(v - 128 + load, 0) for v in self.db.sensors[scu].special]
+        x, y, loaded = calcCoP(w)
+        return (x, y) if loaded else None
+
+    def balance_margin_mm(self) -> float | None:
+        """How far the firmware CoP is inside the edge the robot can tip over (mm), None while
+        a foot's PWM is off. The edges are those of the sensor rectangles (the firmware's CoP
+        cannot leave them): with one foot loaded, the nearest edge of its rectangle; with both
+        loaded, the front (back) edge, the smaller of the two feet's distances to it (the feet
+        stand side by side: the lateral edges of the support are the feet's outer edges, which
+        the robot only reaches once the other foot is off the ground). -1 with no foot loaded."""
+        sensors = self.db.sensors
+        cops = []
+        for k in FOOT_OF_SCU:
+            if not sensors[k].status & _STATUS_PWM:
+                return None
+            c = self.foot_cop_mm(k)
+            if c is not None:
+                cops.append(c)
+        if not cops:
+            return -1.0
+        if len(cops) == 1:
+            x, y = cops[0]
+            return min(x - SENSOR_X_MIN, SENSOR_X_MAX - x, y - SENSOR_Y_MIN, SENSOR_Y_MAX - y)
+        front = max(SENSOR_Y_MAX - y for _, y in cops)
+        back = max(y - SENSOR_Y_MIN for _, y in cops)
+        return min(front, back)
+
+    def _check_balance(self, now: int) -> None:
+        m = self.balance_margin_mm()
+        if m is None or m > self.config.balance_margin_mm:
+            self._balance_since = None
+            return
+        if self._balance_since is None:
+            self._balance_since = now
+        elif now - self._balance_since >= self.config.balance_hold_ms * 1000:
+            self._fault(BALANCE, 0, now)
+
+    # -- bookkeeping -----------------------------------------------------------------------------
+    def _fault(self, code: int, node: int, now: int) -> None:
+        key = (code, node)
+        if key in self._seen:
+            return
+        self._seen.add(key)
+        f = Fault(now, code, node)
+        self.faults.append(f)
+        self.latched.append(f)
+        for cb in self.listeners:
+            cb("fault", now, f)
+        if self.mode != SAFE and self.mode != ESTOP:
+            self._set_mode(SAFE)
+
+    def _set_mode(self, mode: int) -> None:
+        if mode == self.mode:
+            return
+        self.mode = mode
+        for cb in self.listeners:
+            cb("mode", self.clock.now_us, mode)

@@ -1,0 +1,84 @@
+"""Open a recording in rerun's viewer, native or web, listening on loopback only.
+
+``humanoid-twin view FILE.rrd`` runs the native viewer shipped with rerun-sdk; its own gRPC
+server binds 127.0.0.1 (rerun's default, ``::``, would listen on every interface).
+``humanoid-twin view --web FILE.rrd`` serves rerun's web viewer over HTTP on 127.0.0.1 and prints
+the URL to open in a browser; the file is served by a gRPC server on 127.0.0.1 too. Nothing
+listens beyond the machine. docs/recording.md, "Viewing".
+"""
+
+from __future__ import annotations
+
+import os
+import pathlib
+import socket
+import subprocess
+import sys
+
+__all__ = ["LOOPBACK", "ViewerError", "native_viewer_command", "web_viewer_command", "web_url", "view"]
+
+LOOPBACK = "127.0.0.1"
+DEFAULT_WEB_PORT = 9090
+DEFAULT_GRPC_PORT = 9876
+
+
+class ViewerError(RuntimeError):
+    """The viewer cannot start here (no display for the native viewer)."""
+
+
+def _rerun() -> list[str]:
+    # ``python -m rerun``: the viewer of the installed rerun-sdk, with or without an activated venv
+    return [sys.executable, "-m", "rerun"]
+
+
+def native_viewer_command(path: str | pathlib.Path) -> list[str]:
+    """The command line of the native viewer on ``path``, its server bound to loopback."""
+    return [*_rerun(), "--bind", LOOPBACK, str(path)]
+
+
+def web_viewer_command(path: str | pathlib.Path, web_port: int = DEFAULT_WEB_PORT,
+                       grpc_port: int = DEFAULT_GRPC_PORT) -> list[str]:
+    """The command line serving rerun's web viewer on ``path`` (HTTP ``web_port``, gRPC
+    ``grpc_port``, both on 127.0.0.1)."""
+    return [*_rerun(), "--serve-web", "--bind", LOOPBACK, "--web-viewer-port", str(web_port),
+            "--port", str(grpc_port), str(path)]
+
+
+def web_url(web_port: int = DEFAULT_WEB_PORT, grpc_port: int = DEFAULT_GRPC_PORT) -> str:
+    """The URL that opens the served recording in a browser."""
+    proxy = f"rerun%2Bhttp%3A%2F%2F{LOOPBACK}%3A{grpc_port}%2Fproxy"
+    return f"http://{LOOPBACK}:{web_port}/?url={proxy}"
+
+
+def has_display() -> bool:
+    """True where a native window can open (always off Linux; on Linux an X or Wayland display)."""
+    if not sys.platform.startswith("linux"):
+        return True
+    return bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
+
+
+def free_loopback_port() -> int:
+    """A TCP port free on 127.0.0.1 right now."""
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
+        s.bind((LOOPBACK, 0))
+        return int(s.getsockname()[1])
+
+
+def view(path: str | pathlib.Path, *, web: bool = False, web_port: int = DEFAULT_WEB_PORT,
+         grpc_port: int | None = None) -> int:
+    """Run the viewer on ``path`` until it exits; its exit code. With ``web`` the URL is printed
+    on stdout first (Ctrl-C stops the server); ``grpc_port`` None: a free loopback port."""
+    if web:
+        if grpc_port is None:
+            grpc_port = free_loopback_port()
+        print(f"rerun web viewer: {web_url(web_port, grpc_port)}  (Ctrl-C to stop)", flush=True)
+        cmd = web_viewer_command(path, web_port, grpc_port)
+    else:
+        if not has_display():
+            raise ViewerError("no display (DISPLAY/WAYLAND_DISPLAY unset): use `view --web FILE.rrd` "
+                              "and open the printed URL in a browser")
+        cmd = native_viewer_command(path)
+    try:
+        return subprocess.call(cmd)
+    except KeyboardInterrupt:
+        return 0

@@ -1,0 +1,199 @@
+"""``humanoid-twin sweep``: argument checks (all before anything is written) and the command."""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import sys
+from pathlib import Path
+from typing import Any
+
+from humanoid_twin.sweep.engine import (
+    BACKENDS,
+    DEFAULT_TIMEOUT_S,
+    RunCli,
+    check_backend,
+    grid,
+    run_sweep,
+)
+from humanoid_twin.sweep.table import SweepError, read_table, table_format
+
+# run options a sweep sets itself, or that would make every run write the same file
+NOT_PARAMS = {"command", "scenario", "out", "no_record", "can_log", "json", "no_progress"}
+
+
+def _count(text: str) -> int:
+    try:
+        n = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a whole number: {text!r}") from None
+    if n < 1:
+        raise argparse.ArgumentTypeError(f"must be at least 1, got {text!r}")
+    return n
+
+
+def _seconds(text: str) -> float:
+    try:
+        s = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number of seconds: {text!r}") from None
+    if not math.isfinite(s) or s <= 0:
+        raise argparse.ArgumentTypeError(f"must be a positive number of seconds, got {text!r}")
+    return s
+
+
+def add_sweep_parser(sub: Any, scenarios: tuple[str, ...]) -> argparse.ArgumentParser:
+    """The ``sweep`` subcommand (``sub``: the CLI's subparsers). Options it does not know are
+    ``run``'s, given to every run."""
+    p = sub.add_parser(
+        "sweep",
+        allow_abbrev=False,   # --seed (run's) must not be read as --seeds (sweep's)
+        help="run a grid of runs in parallel (this machine or a Ray cluster) into one table",
+        description="Run SCENARIO for every combination of the --param values times seeds 0..N-1, "
+        "in parallel, into one table (one row per run: the parameters, seed, every key of "
+        "`run --json`, error). Any other `run` option (e.g. --duration 3 --tilt 5) applies to "
+        "every run. See docs/sweeps.md.",
+    )
+    p.add_argument("scenario", choices=scenarios, help="the motion to run")
+    p.add_argument("--param", action="append", default=[], metavar="NAME=V1,V2,...",
+                   help="a run option (its flag without dashes: tilt, T, motion, perna, control, fault, "
+                   "seed ...) and its values; repeat for a grid")
+    p.add_argument("--seeds", type=_count, default=1, metavar="N", help="seeds 0..N-1 (default 1)")
+    p.add_argument("--jobs", type=_count, metavar="N", help="runs at a time (default: the cores here; "
+                   "ray: the CPUs of the local Ray)")
+    p.add_argument("--backend", choices=BACKENDS, default="local",
+                   help="local (default): a process per run here; ray: a Ray cluster (the ray extra)")
+    p.add_argument("--address", help="ray: the cluster to join (e.g. HOST:6379 or auto; "
+                   "default: start a local Ray)")
+    p.add_argument("--out", type=Path, required=True, metavar="FILE.csv|FILE.parquet",
+                   help="the table; runs already in it are skipped (runs with an error run again)")
+    p.add_argument("--recordings", type=Path, metavar="DIR", help="write one .rrd per run into DIR "
+                   "(default: no recordings)")
+    p.add_argument("--timeout", type=_seconds, default=DEFAULT_TIMEOUT_S, metavar="S",
+                   help=f"a run taking longer is stopped and is a row with an error (default "
+                   f"{DEFAULT_TIMEOUT_S:g} s)")
+    p.add_argument("--plot", type=Path, metavar="FILE.png", help="plot --metric against --x")
+    p.add_argument("--metric", metavar="KEY", help="--plot: the column on the y axis (e.g. "
+                   "cop_margin_min_mm)")
+    p.add_argument("--x", metavar="PARAM", help="--plot: the parameter on the x axis")
+    p.add_argument("--no-progress", action="store_true", help="no progress on stderr")
+    return p
+
+
+def _writable_dir(path: Path, what: str) -> None:
+    parent = path.expanduser().resolve().parent
+    if path.is_dir():
+        raise SweepError(f"{what} {path} is a directory")
+    if not parent.is_dir():
+        raise SweepError(f"{what} {path}: directory {parent} does not exist")
+    if not os.access(parent, os.W_OK):
+        raise SweepError(f"{what} {path} is not writable")
+
+
+def parse_params(specs: list[str]) -> dict[str, list[str]]:
+    """``["tilt=0,5", "T=1"]`` -> ``{"tilt": ["0", "5"], "T": ["1"]}``; :class:`SweepError` on a
+    malformed spec or a name given twice."""
+    params: dict[str, list[str]] = {}
+    for spec in specs:
+        name, eq, values = spec.partition("=")
+        name = name.strip().lstrip("-")
+        vals = [v.strip() for v in values.split(",")]
+        if not eq or not name or any(v == "" for v in vals):
+            raise SweepError(f"--param {spec!r}: expected NAME=V1,V2,... (no empty values)")
+        if name in params:
+            raise SweepError(f"--param {name} given twice")
+        if len(set(vals)) != len(vals):
+            raise SweepError(f"--param {spec!r}: a value is repeated")
+        params[name] = vals
+    return params
+
+
+def plan_sweep(args: argparse.Namespace, parser: argparse.ArgumentParser
+               ) -> tuple[dict[str, list[str]], list[int], RunCli]:
+    """Check every input of ``sweep`` (``parser``: the CLI's, whose ``run`` checks each value);
+    returns the grid, the seeds and the task. Raises :class:`SweepError` (or exits 2 through the
+    parser) before anything is written."""
+    run_args = list(args.run_args)
+    base = vars(parser.parse_args(["run", args.scenario, "--no-record"]))
+    given = vars(parser.parse_args(["run", args.scenario, "--no-record", *run_args]))
+    if given["can_log"] is not None:
+        raise SweepError("--can-log is per run: use --recordings DIR for one recording per run")
+    if given["out"] is not None:
+        raise SweepError("--out is the sweep's table; use --recordings DIR for the runs' recordings")
+    if given["seed"] != base["seed"] or any(a.startswith("--seed") for a in run_args):
+        raise SweepError("--seed: use --seeds N (seeds 0..N-1) or --param seed=S1,S2,...")
+    params = parse_params(args.param)
+    seeds = list(range(args.seeds))
+    if "seed" in params:
+        if args.seeds != 1:
+            raise SweepError("give either --seeds N or --param seed=..., not both")
+        try:
+            seeds = [int(v) for v in params.pop("seed")]
+        except ValueError:
+            raise SweepError("--param seed: seeds are whole numbers") from None
+    for name, values in params.items():
+        dest = name.replace("-", "_")
+        if dest not in base or dest in NOT_PARAMS:
+            options = sorted(d.replace("_", "-") for d in base if d not in NOT_PARAMS)
+            raise SweepError(f"--param {name}: not a run option a sweep can vary (choose from "
+                             f"{' '.join(options)})")
+        if given[dest] != base[dest]:
+            raise SweepError(f"--{name} is given both as a run option and as --param {name}")
+        for v in values:      # run's own checks, one line and exit 2 on a bad value
+            parser.parse_args(["run", args.scenario, "--no-record", *run_args, f"--{name}={v}"])
+    table_format(args.out)
+    _writable_dir(args.out, "--out")
+    if args.out.exists():
+        try:
+            read_table(args.out)
+        except Exception as exc:  # noqa: BLE001 - whatever the reader says, it is not a table
+            raise SweepError(f"--out {args.out} exists and is not a sweep table ({exc})") from None
+    check_backend(args.backend)
+    if args.address is not None and args.backend != "ray":
+        raise SweepError("--address is for --backend ray")
+    if args.recordings is not None and args.recordings.exists() and not args.recordings.is_dir():
+        raise SweepError(f"--recordings {args.recordings} is not a directory")
+    if args.plot is not None:
+        if args.plot.suffix.lower() != ".png":
+            raise SweepError(f"--plot {args.plot}: a plot ends in .png")
+        _writable_dir(args.plot, "--plot")
+        if args.metric is None or args.x is None:
+            raise SweepError("--plot needs --metric KEY and --x PARAM")
+        if args.x not in params and args.x != "seed":
+            raise SweepError(f"--x {args.x}: not a --param of this sweep ({' '.join(params) or 'none'})")
+    elif args.metric is not None or args.x is not None:
+        raise SweepError("--metric and --x go with --plot FILE.png")
+    recordings = None if args.recordings is None else str(args.recordings)
+    return params, seeds, RunCli(args.scenario, tuple(run_args), recordings, args.timeout)
+
+
+def sweep_command(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
+    """``humanoid-twin sweep`` (``args.run_args``: the options for every run)."""
+    try:
+        params, seeds, task = plan_sweep(args, parser)
+    except SweepError as exc:
+        sys.stderr.write(f"humanoid-twin: error: {exc}\n")
+        return 2
+    if args.recordings is not None:
+        args.recordings.mkdir(parents=True, exist_ok=True)
+    points = grid(params, seeds)
+    progress = None if args.no_progress else sys.stderr
+    if progress is not None:
+        where = args.address or "a local Ray" if args.backend == "ray" else "this machine"
+        progress.write(f"sweep: {len(points)} runs of {args.scenario} on {where}"
+                       f"{f' ({args.jobs} jobs)' if args.jobs else ''} into {args.out}\n")
+    rows = run_sweep(points, task, args.out, jobs=args.jobs, backend=args.backend, address=args.address,
+                     progress=progress)
+    failed = sum(bool(r.get("error")) for r in rows)
+    print(f"{args.out}: {len(rows)} runs, {failed} failed")
+    if args.plot is not None:
+        from humanoid_twin.sweep.plot import plot_sweep
+
+        try:
+            plot_sweep(rows, args.x, args.metric, args.plot, list(params) + ["seed"])
+        except SweepError as exc:
+            sys.stderr.write(f"humanoid-twin: error: {exc}\n")
+            return 2
+        print(f"{args.plot}: {args.metric} against {args.x}")
+    return 0

@@ -1,0 +1,321 @@
+"""Grid points, the task that runs one, and the two backends (local process pool, Ray)."""
+
+from __future__ import annotations
+
+import itertools
+import json
+import math
+import os
+import subprocess
+import sys
+import time
+from collections.abc import Callable, Iterable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, TextIO
+
+from humanoid_twin.sweep.table import SweepError, cell, read_table, table_format, write_table
+
+BACKENDS = ("local", "ray")
+DEFAULT_TIMEOUT_S = 900.0
+# columns a re-run may change (timing); every other cell is the same whatever the backend and --jobs
+TIMING_COLUMNS = ("wall_s", "rtf")
+
+Task = Callable[["Point"], dict[str, Any]]
+
+
+def typed_value(text: Any) -> Any:
+    """A parameter value as the table stores it: an int, else a float, else the text."""
+    if not isinstance(text, str):
+        return text
+    for kind in (int, float):
+        try:
+            return kind(text)
+        except ValueError:
+            pass
+    return text
+
+
+def _key_value(value: Any) -> str:
+    """The same parameter value read back from CSV (text) or Parquet/JSON (typed) gives one key."""
+    v = typed_value(value)
+    if isinstance(v, bool):
+        return str(v)
+    if isinstance(v, int | float):
+        return repr(float(v))
+    return "" if v is None else str(v)
+
+
+@dataclass(frozen=True)
+class Point:
+    """One run of a sweep: its place in the grid, its parameters (name -> value) and its seed."""
+
+    index: int
+    params: tuple[tuple[str, Any], ...]
+    seed: int = 0
+
+    def key(self) -> tuple:
+        """What identifies this run in a table (so a re-run can skip it)."""
+        return tuple((n, _key_value(v)) for n, v in self.params) + (("seed", _key_value(self.seed)),)
+
+    def row_prefix(self) -> dict[str, Any]:
+        return {**{n: typed_value(v) for n, v in self.params}, "seed": self.seed}
+
+    def label(self) -> str:
+        return "_".join(f"{n}={v}" for n, v in self.params) + f"_seed={self.seed}"
+
+
+def grid(params: dict[str, Sequence[Any]], seeds: Iterable[int] = (0,)) -> list[Point]:
+    """Every combination of ``params`` values (first name outermost) times ``seeds``."""
+    names = list(params)
+    seeds = list(seeds)
+    points: list[Point] = []
+    for values in itertools.product(*(params[n] for n in names)):
+        for seed in seeds:
+            points.append(Point(len(points), tuple(zip(names, values, strict=True)), seed))
+    return points
+
+
+def row_key(row: dict[str, Any], names: Sequence[str]) -> tuple | None:
+    """The :meth:`Point.key` of a table row, or None when the row lacks one of ``names``."""
+    if any(n not in row for n in names) or "seed" not in row:
+        return None
+    return tuple((n, _key_value(row[n])) for n in names) + (("seed", _key_value(row["seed"])),)
+
+
+@dataclass(frozen=True)
+class RunCli:
+    """Runs one point as ``humanoid-twin run SCENARIO ... --json`` in its own process (the CLI's own
+    code path; a crash or a hang is that point's error). ``run_args`` apply to every run;
+    ``recordings``: a folder for one ``.rrd`` per run (default: no recording)."""
+
+    scenario: str
+    run_args: tuple[str, ...] = ()
+    recordings: str | None = None
+    timeout: float | None = DEFAULT_TIMEOUT_S
+
+    def argv(self, point: Point) -> list[str]:
+        argv = [sys.executable, "-m", "humanoid_twin.cli.main", "run", self.scenario, *self.run_args]
+        argv += [f"--{name}={value}" for name, value in point.params]
+        argv += [f"--seed={point.seed}", "--json", "--no-progress"]
+        if self.recordings is None:
+            argv.append("--no-record")
+        else:
+            argv.append(f"--out={Path(self.recordings) / (self.scenario + '_' + point.label() + '.rrd')}")
+        return argv
+
+    def __call__(self, point: Point) -> dict[str, Any]:
+        try:
+            proc = subprocess.run(self.argv(point), capture_output=True, text=True, timeout=self.timeout,
+                                  stdin=subprocess.DEVNULL)
+        except subprocess.TimeoutExpired:
+            raise RuntimeError(f"timeout: the run took more than {self.timeout:g} s") from None
+        lines = [ln for ln in proc.stdout.splitlines() if ln.strip()]
+        # exit 0: done; exit 3: the supervisor ended the run in a safe state, a result like any other
+        if proc.returncode in (0, 3) and lines:
+            try:
+                return json.loads(lines[-1])
+            except json.JSONDecodeError:
+                pass
+        err = [ln for ln in proc.stderr.splitlines() if ln.strip()]
+        raise RuntimeError(f"exit {proc.returncode}: {err[-1].strip() if err else 'no message'}")
+
+
+def run_point(task: Task, point: Point) -> dict[str, Any]:
+    """The table row of one point: its parameters, ``seed``, the task's summary and ``error``
+    (empty when the run worked). Never raises: a failed run is a row."""
+    row = point.row_prefix()
+    try:
+        summary = task(point)
+        error = ""
+    except Exception as exc:  # noqa: BLE001 - any failure of a run is that run's row
+        summary = {}
+        error = f"{type(exc).__name__}: {exc}".replace("\n", " ")
+    for k, v in summary.items():
+        row.setdefault(k, cell(v))
+    row["error"] = error
+    return row
+
+
+@dataclass
+class Progress:
+    """Runs done / total, failures, ETA on ``stream``: a tqdm bar on a terminal, else a plain
+    line every ~10 % (no carriage returns in a log)."""
+
+    total: int
+    stream: TextIO | None = None
+    done: int = 0
+    failed: int = 0
+    _t0: float = field(default_factory=time.perf_counter)
+    _bar: Any = None
+    _next_pct: int = 10
+
+    def __post_init__(self) -> None:
+        if self.stream is not None and self.total and self.stream.isatty():
+            from tqdm import tqdm
+
+            self._bar = tqdm(total=self.total, unit="run", desc="sweep", file=self.stream)
+
+    def update(self, row: dict[str, Any]) -> None:
+        self.done += 1
+        self.failed += bool(row.get("error"))
+        if self._bar is not None:
+            self._bar.set_postfix_str(f"{self.failed} failed", refresh=False)
+            self._bar.update(1)
+        elif self.stream is not None and (100 * self.done >= self._next_pct * self.total
+                                          or self.done == self.total):
+            self._next_pct = 10 * (100 * self.done // self.total // 10) + 10
+            self.stream.write(self.line() + "\n")
+            self.stream.flush()
+
+    def line(self) -> str:
+        elapsed = time.perf_counter() - self._t0
+        eta = elapsed / self.done * (self.total - self.done) if self.done else math.nan
+        return (f"sweep: {self.done}/{self.total} runs done, {self.failed} failed, "
+                f"{elapsed:.0f} s elapsed, ETA {eta:.0f} s")
+
+    def close(self) -> None:
+        if self._bar is not None:
+            self._bar.close()
+
+
+def _local(task: Task, points: list[Point], jobs: int) -> Iterable[dict[str, Any]]:
+    """One process per run, ``jobs`` at a time; a worker that dies is its run's error."""
+    from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+    from concurrent.futures.process import BrokenProcessPool
+
+    todo = list(reversed(points))
+    while todo:
+        with ProcessPoolExecutor(max_workers=jobs) as pool:
+            running = {}
+            broken = False
+            while (todo or running) and not broken:
+                while todo and len(running) < jobs:
+                    p = todo.pop()
+                    running[pool.submit(run_point, task, p)] = p
+                finished, _ = wait(running, return_when=FIRST_COMPLETED)
+                for fut in finished:
+                    p = running.pop(fut)
+                    try:
+                        yield fut.result()
+                    except BrokenProcessPool as exc:
+                        broken = True
+                        row = p.row_prefix()
+                        row["error"] = f"BrokenProcessPool: the worker process died ({exc})"
+                        yield row
+            # a dead worker breaks the pool: the runs in flight are errors, the rest go on in a new pool
+            for fut, p in running.items():
+                row = p.row_prefix()
+                row["error"] = "BrokenProcessPool: a worker process died during this run"
+                fut.cancel()
+                yield row
+
+
+def _ray(task: Task, points: list[Point], jobs: int | None, address: str | None
+         ) -> Iterable[dict[str, Any]]:
+    """One Ray task (1 CPU) per run; ``address`` joins a cluster, None starts a local Ray."""
+    import ray
+
+    started = False
+    if not ray.is_initialized():
+        kwargs: dict[str, Any] = {"include_dashboard": False, "log_to_driver": False,
+                                  "logging_level": "ERROR"}
+        if address is None:
+            kwargs["num_cpus"] = jobs or os.cpu_count() or 1
+        ray.init(address=address, **kwargs)
+        started = True
+    try:
+        remote = ray.remote(num_cpus=1, max_retries=1)(run_point)
+        refs = {remote.remote(task, p): p for p in points}
+        pending = list(refs)
+        while pending:
+            ready, pending = ray.wait(pending, num_returns=1)
+            for ref in ready:
+                try:
+                    yield ray.get(ref)
+                except Exception as exc:  # noqa: BLE001 - a worker that died is its run's error
+                    row = refs[ref].row_prefix()
+                    row["error"] = f"{type(exc).__name__}: {exc}".splitlines()[0]
+                    yield row
+    finally:
+        if started:
+            ray.shutdown()
+
+
+def check_backend(backend: str) -> None:
+    """:class:`SweepError` when ``backend`` is unknown or its package is missing."""
+    if backend not in BACKENDS:
+        raise SweepError(f"unknown backend {backend!r} (choose from {', '.join(BACKENDS)})")
+    if backend == "ray":
+        try:
+            import ray  # noqa: F401
+        except ImportError:
+            raise SweepError("the ray backend needs Ray: pip install 'humanoid-twin[ray]'") from None
+
+
+def run_sweep(points: Sequence[Point], task: Task, out: Path, *, jobs: int | None = None,
+              backend: str = "local", address: str | None = None, progress: TextIO | None = None
+              ) -> list[dict[str, Any]]:
+    """Run every point of ``points`` not already in ``out`` (rows with an ``error`` are run again),
+    rewriting ``out`` atomically after each finished run; returns the rows of ``points`` in their
+    order (those read from ``out`` and the new ones)."""
+    table_format(out)
+    check_backend(backend)
+    names = [n for n, _ in points[0].params] if points else []
+    old = read_table(out) if out.exists() else []
+    old_by_key = {}
+    for row in old:
+        k = row_key(row, names)
+        if k is not None and not row.get("error"):
+            old_by_key[k] = row
+    wanted = {p.key() for p in points}
+    # rows of the table that this sweep does not run again, in the table's order
+    kept = [r for r in old if row_key(r, names) not in wanted or row_key(r, names) in old_by_key]
+    todo = [p for p in points if p.key() not in old_by_key]
+    jobs = jobs or os.cpu_count() or 1
+    bar = Progress(len(todo), progress)
+    if progress is not None and len(todo) < len(points):
+        progress.write(f"sweep: {len(points) - len(todo)} of {len(points)} runs already in {out}, "
+                       f"{len(todo)} to run\n")
+    new: dict[int, dict[str, Any]] = {}
+
+    def flush() -> None:
+        # columns from the rows in grid order: the same table whatever order the runs finish in
+        rows = kept + [new[i] for i in sorted(new)]
+        write_table(out, rows, _ordered(_columns(rows)))
+
+    try:
+        if todo:
+            runs = _local(task, todo, jobs) if backend == "local" else _ray(task, todo, jobs, address)
+            index = {p.key(): p.index for p in todo}
+            for row in runs:
+                new[index[row_key(row, names)]] = row
+                flush()
+                bar.update(row)
+        elif not out.exists():
+            flush()
+    finally:
+        bar.close()
+    by_key = {row_key(r, names): r for r in kept}
+    by_key.update({row_key(r, names): r for r in new.values()})
+    return [by_key[p.key()] for p in points]
+
+
+def _columns(rows: list[dict[str, Any]]) -> list[str]:
+    cols: list[str] = []
+    seen: set[str] = set()
+    for row in rows:
+        for c in row:
+            if c not in seen:
+                seen.add(c)
+                cols.append(c)
+    return cols
+
+
+def _ordered(columns: list[str]) -> list[str]:
+    """``error`` last."""
+    return [c for c in columns if c != "error"] + (["error"] if "error" in columns else [])
+
+
+__all__ = ["Point", "RunCli", "SweepError", "grid", "run_sweep", "run_point", "typed_value", "BACKENDS",
+           "TIMING_COLUMNS", "check_backend"]

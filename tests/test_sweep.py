@@ -1,0 +1,181 @@
+"""humanoid-twin sweep (docs/sweeps.md): a grid of runs into one table, on the local process pool
+or Ray. Runs are `stand` for 3 s of simulated time (just past the boot) to keep the suite short."""
+
+from __future__ import annotations
+
+import csv
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from humanoid_twin.cli.main import main
+from humanoid_twin.sweep import Point, grid, run_sweep
+from humanoid_twin.sweep.engine import TIMING_COLUMNS
+
+RUN = [sys.executable, "-m", "humanoid_twin.cli.main"]
+GRID = ["--param", "tilt=0,3", "--seeds", "2", "--duration", "3"]
+
+
+def _rows(path: Path) -> list[dict[str, str]]:
+    with open(path, newline="") as f:
+        return list(csv.DictReader(f))
+
+
+def _untimed(rows: list[dict]) -> list[dict]:
+    return [{k: v for k, v in r.items() if k not in TIMING_COLUMNS} for r in rows]
+
+
+def _sweep(argv: list[str], capsys) -> tuple[int, str, str]:
+    rc = main(["sweep", "stand", *argv])
+    out, err = capsys.readouterr()
+    return rc, out, err
+
+
+@pytest.fixture(scope="module")
+def two_jobs(tmp_path_factory) -> Path:
+    out = tmp_path_factory.mktemp("sweep") / "grid.csv"
+    assert main(["sweep", "stand", *GRID, "--jobs", "2", "--out", str(out)]) == 0
+    return out
+
+
+def test_grid_rows_equal_single_runs(two_jobs):
+    rows = _rows(two_jobs)
+    assert [(r["tilt"], r["seed"]) for r in rows] == [("0", "0"), ("0", "1"), ("3", "0"), ("3", "1")]
+    for r in rows:
+        assert r["error"] == ""
+        single = subprocess.run(RUN + ["run", "stand", "--duration", "3", "--tilt", r["tilt"], "--seed",
+                                       r["seed"], "--no-record", "--no-progress", "--json"],
+                                capture_output=True, text=True, check=True)
+        summary = json.loads(single.stdout.strip().splitlines()[-1])
+        for key, value in summary.items():
+            if key in TIMING_COLUMNS:
+                continue
+            cell = "" if value is None else json.dumps(value, sort_keys=True) if isinstance(value, list) \
+                else str(value)
+            assert r[key] == cell, (key, r[key], value)
+    # the seeds are different runs (sensor noise): the table is not one run copied four times
+    assert rows[0]["cop_error_rms_mm"] != rows[1]["cop_error_rms_mm"]
+
+
+def test_rerun_skips_rows_already_there(two_jobs, capsys):
+    before = _rows(two_jobs)
+    rc, _, err = _sweep([*GRID, "--out", str(two_jobs)], capsys)
+    assert rc == 0
+    assert "4 of 4 runs already in" in err
+    assert _rows(two_jobs) == before        # wall_s unchanged: nothing ran again
+
+
+def test_one_job_gives_the_same_rows_as_two(two_jobs, tmp_path, capsys):
+    out = tmp_path / "one.csv"
+    rc, _, err = _sweep([*GRID, "--jobs", "1", "--out", str(out)], capsys)
+    assert rc == 0
+    assert "\r" not in err and "4/4 runs done, 0 failed" in err    # plain progress lines off a TTY
+    assert _untimed(_rows(out)) == _untimed(_rows(two_jobs))
+    assert list(_rows(out)[0]) == list(_rows(two_jobs)[0])          # same columns, same order
+
+
+def test_a_failing_point_is_a_row_with_its_error(tmp_path, capsys):
+    out = tmp_path / "fail.csv"
+    # no such SocketCAN interface here (or no SocketCAN at all): that run fails, the other works
+    rc, stdout, _ = _sweep(["--param", "can-interface=virtual,socketcan", "--can-channel", "nosuch0",
+                            "--duration", "3", "--out", str(out)], capsys)
+    assert rc == 0 and "2 runs, 1 failed" in stdout
+    ok, bad = _rows(out)
+    assert ok["can-interface"] == "virtual" and ok["error"] == "" and ok["fell"] == "False"
+    assert bad["can-interface"] == "socketcan" and bad["error"].startswith("RuntimeError: exit 1")
+    assert bad["fell"] == ""
+
+
+def _flaky(point: Point) -> dict:
+    mode = dict(point.params)["mode"]
+    if mode == "crash":
+        os._exit(7)                       # the worker process dies
+    if mode == "raise":
+        raise ValueError("bad point")
+    return {"value": point.seed + 1}
+
+
+def test_a_crashed_worker_is_a_row_and_the_sweep_goes_on(tmp_path):
+    points = grid({"mode": ["ok", "raise", "crash", "ok2"]})
+    rows = run_sweep(points, _flaky, tmp_path / "t.csv", jobs=1)
+    assert [r["error"][:16] for r in rows] == ["", "ValueError: bad ", "BrokenProcessPoo", ""]
+    assert rows[3]["value"] == 1
+    # a re-run runs the failed points again, not the good ones
+    rows2 = run_sweep(points, _flaky, tmp_path / "t.csv", jobs=1)
+    assert [bool(r["error"]) for r in rows2] == [False, True, True, False]
+
+
+def test_parquet_and_csv_read_back_the_same(two_jobs, tmp_path, capsys):
+    pq = pytest.importorskip("pyarrow.parquet")
+    pacsv = pytest.importorskip("pyarrow.csv")
+    out = tmp_path / "grid.parquet"
+    rc, _, _ = _sweep([*GRID, "--jobs", "2", "--out", str(out)], capsys)
+    assert rc == 0
+    table = pq.read_table(out).to_pylist()
+    # pyarrow reads an empty CSV cell as null
+    from_csv = [{**r, "error": r["error"] or ""} for r in pacsv.read_csv(two_jobs).to_pylist()]
+    assert len(table) == 4 and table[2]["tilt"] == 3 and table[2]["fell"] is False
+    assert _untimed(table) == _untimed(from_csv)
+    rc, _, err = _sweep([*GRID, "--out", str(out)], capsys)        # resume from a Parquet table
+    assert rc == 0 and "4 of 4 runs already in" in err
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["--param", "bogus=1,2"], "--param bogus: not a run option"),
+    (["--param", "tilt=0,abc"], "argument --tilt"),
+    (["--param", "tilt"], "expected NAME=V1,V2"),
+    (["--param", "tilt=1", "--tilt", "2"], "given both"),
+    (["--param", "out=x.rrd"], "not a run option"),
+    (["--param", "perna=1,3"], "argument --perna"),
+    (["--seed", "3"], "--seeds N"),
+    (["--backend", "local", "--address", "auto"], "--address is for --backend ray"),
+    (["--plot", "p.png", "--metric", "fell"], "--plot needs"),
+])
+def test_bad_input_is_one_line_exit_2_nothing_written(tmp_path, capsys, argv, message):
+    out = tmp_path / "t.csv"
+    rc = None
+    try:
+        rc = main(["sweep", "stand", *argv, "--out", str(out)])
+    except SystemExit as exc:
+        rc = exc.code
+    err = capsys.readouterr().err
+    assert rc == 2 and message in err and len(err.strip().splitlines()) == 1
+    assert not out.exists()
+
+
+def test_bad_table_suffix_and_an_existing_file_kept(tmp_path, capsys):
+    bad = tmp_path / "t.txt"
+    assert main(["sweep", "stand", "--out", str(bad)]) == 2
+    junk = tmp_path / "junk.parquet"
+    junk.write_bytes(b"not parquet")
+    assert main(["sweep", "stand", "--duration", "3", "--out", str(junk)]) == 2
+    assert junk.read_bytes() == b"not parquet"
+    assert "not a sweep table" in capsys.readouterr().err
+
+
+def test_plot(two_jobs, tmp_path, capsys):
+    png = tmp_path / "p.png"
+    rc, stdout, _ = _sweep([*GRID, "--out", str(two_jobs), "--plot", str(png), "--metric",
+                            "trunk_tilt_max_deg", "--x", "tilt"], capsys)
+    assert rc == 0 and png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_ray_backend_gives_the_same_rows(two_jobs, tmp_path, capsys):
+    pytest.importorskip("ray")
+    out = tmp_path / "ray.csv"
+    rc, _, _ = _sweep([*GRID, "--backend", "ray", "--jobs", "2", "--out", str(out)], capsys)
+    assert rc == 0
+    assert _untimed(_rows(out)) == _untimed(_rows(two_jobs))
+
+
+def test_a_run_past_the_timeout_is_a_row_with_its_error(tmp_path, capsys):
+    out = tmp_path / "slow.csv"
+    rc, stdout, _ = _sweep(["--param", "tilt=0", "--duration", "30", "--timeout", "0.5", "--out", str(out)],
+                           capsys)
+    assert rc == 0 and "1 runs, 1 failed" in stdout
+    (row,) = _rows(out)
+    assert row == {"tilt": "0", "seed": "0", "error": "RuntimeError: timeout: the run took more than 0.5 s"}

@@ -1,0 +1,81 @@
+"""`humanoid-twin view --web`: rerun's web viewer served on loopback only, URL printed."""
+
+from __future__ import annotations
+
+import os
+import signal
+import socket
+import subprocess
+import sys
+import time
+import urllib.request
+
+import pytest
+
+from humanoid_twin.recording.viewer import LOOPBACK, free_loopback_port, native_viewer_command
+
+
+def _tiny_rrd(path) -> None:
+    import rerun as rr
+
+    rec = rr.RecordingStream("humanoid_twin_test")
+    rec.save(path)
+    rec.log("x", rr.Scalars(1.0))
+    rec.flush()
+    rec.disconnect()
+
+
+def _listening_addresses(port: int) -> list[str]:
+    out = subprocess.run(["ss", "-ltnH", f"sport = :{port}"], capture_output=True, text=True).stdout
+    return [line.split()[3].rsplit(":", 1)[0] for line in out.splitlines() if line.strip()]
+
+
+def test_view_web_answers_http_200_on_loopback_only(tmp_path):
+    rrd = tmp_path / "t.rrd"
+    _tiny_rrd(rrd)
+    try:
+        port = free_loopback_port()
+    except OSError:
+        pytest.skip("cannot open a loopback port here")
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "humanoid_twin.cli.main", "view", "--web", "--port", str(port), str(rrd)],
+        stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True, start_new_session=True,
+    )
+    try:
+        first = proc.stdout.readline()
+        assert f"http://{LOOPBACK}:{port}/" in first, first
+        url = first.split()[3]
+        status = None
+        deadline = time.monotonic() + 20
+        while time.monotonic() < deadline:
+            try:
+                with urllib.request.urlopen(url, timeout=2) as r:
+                    status = r.status
+                    break
+            except OSError:
+                time.sleep(0.2)
+        assert status == 200
+        addrs = _listening_addresses(port)
+        if addrs:  # `ss` present: the HTTP server listens on loopback, not on every interface
+            assert set(addrs) == {LOOPBACK}, addrs
+        # nothing answers on a non-loopback address of this host
+        other = socket.gethostbyname(socket.gethostname())
+        if not other.startswith("127."):
+            with pytest.raises(OSError):
+                socket.create_connection((other, port), timeout=1).close()
+    finally:
+        os.killpg(proc.pid, signal.SIGTERM)
+        proc.wait(timeout=10)
+
+
+def test_native_view_binds_loopback_and_needs_a_display(tmp_path):
+    rrd = tmp_path / "t.rrd"
+    _tiny_rrd(rrd)
+    cmd = native_viewer_command(rrd)
+    assert cmd[cmd.index("--bind") + 1] == LOOPBACK
+    env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY")}
+    r = subprocess.run([sys.executable, "-m", "humanoid_twin.cli.main", "view", str(rrd)], env=env,
+                       capture_output=True, text=True, timeout=60)
+    assert r.returncode == 2
+    assert "view --web" in r.stderr and "Traceback" not in r.stderr
+    assert len(r.stderr.strip().splitlines()) == 1
