@@ -8,7 +8,9 @@ screen is needed, only a Vulkan driver: on a machine without a GPU, Mesa's lavap
 recording, pauses the time cursor in the middle of the squat and asks the viewer for a
 screenshot (``rerun.experimental.ViewerClient``). Web: serves the same file with
 ``humanoid-twin view --web`` and photographs the page in headless Chromium. Everything listens on
-127.0.0.1 only and is stopped at the end. PNGs are reduced to a 256-colour palette with Pillow
+127.0.0.1 only and is stopped at the end. (Known limit: on a 2-core container without a GPU,
+Chromium 156's software WebGL left rerun's web viewer blank after its wasm loaded; the native
+shot is the one kept in docs/img/.) PNGs are reduced to a 256-colour palette with Pillow
 when it is installed.
 
 What it needs (Debian/Ubuntu, as root)::
