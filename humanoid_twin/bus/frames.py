@@ -137,3 +137,43 @@ def frame_bits(arbitration_id: int, data: bytes) -> int:
 def max_frame_bits(n_bytes: int) -> int:
     """Worst-case length of a standard data frame of ``n_bytes`` (Davis et al. 2007), incl. IFS."""
     return 47 + 8 * n_bytes + (34 + 8 * n_bytes - 1) // 4
+
+
+# -- acceptance filtering (the one place it is parsed and matched) ------------------------------
+Filters = tuple[tuple[int, int, "bool | None"], ...]
+
+
+def parse_filters(can_filters: list[dict] | None) -> Filters | None:
+    """python-can ``can_filters`` (``can_id``, ``can_mask``, optional ``extended``) as int tuples
+    ``(id & mask, mask, extended-or-None)``; None (or empty) accepts every frame.
+
+    The PIC's acceptance masks and filters (seed 002 slide 23) are given in this form by the boards
+    (``master.candrivers``/``slave.can``); the wire applies them before any board's receive
+    interrupt runs, as the PIC's CAN module does.
+    """
+    if not can_filters:
+        return None
+    out = []
+    for f in can_filters:
+        try:
+            can_id = int(f["can_id"])
+            can_mask = int(f["can_mask"])
+        except (KeyError, TypeError, ValueError) as e:
+            raise ValueError(f"a CAN filter needs int 'can_id' and 'can_mask' keys, got {f!r}") from e
+        if can_id < 0 or can_mask < 0 or can_id > 0x1FFFFFFF or can_mask > 0x1FFFFFFF:
+            raise ValueError(f"CAN filter id/mask out of range: {f!r}")
+        ext = f.get("extended")
+        out.append((can_id & can_mask, can_mask, None if ext is None else bool(ext)))
+    return tuple(out)
+
+
+def filters_accept(filt: Filters | None, arbitration_id: int, is_extended: bool = False) -> bool:
+    """Whether a frame passes ``filt`` (from :func:`parse_filters`)."""
+    if filt is None:
+        return True
+    for can_id, mask, ext in filt:
+        if ext is not None and ext != is_extended:
+            continue
+        if arbitration_id & mask == can_id:
+            return True
+    return False

@@ -31,7 +31,13 @@ from collections.abc import Callable
 
 import can
 
-from humanoid_twin.bus.frames import TRAILING_RECESSIVE_BITS, _frame_bits_cached
+from humanoid_twin.bus.frames import (
+    TRAILING_RECESSIVE_BITS,
+    Filters,
+    _frame_bits_cached,
+    filters_accept,
+    parse_filters,
+)
 from humanoid_twin.bus.twin_bus import TwinBus, get_medium, release_medium
 from humanoid_twin.clock import US_PER_S, Clock
 
@@ -101,7 +107,7 @@ class CanController:
         self._suspend_until = 0
         self._rec_count = 0
         self._rec_mark = 0
-        self._filt: tuple[tuple[int, int], ...] | None = None
+        self._filt: Filters | None = None
         self._external = external
 
     def __repr__(self) -> str:
@@ -164,19 +170,6 @@ class CanController:
         """Used when draining another python-can interface (the twin bus calls on_rx directly)."""
         if not self._off:
             self._on_rx(msg)
-
-
-def _filter_tuple(can_filters: list[dict] | None) -> tuple[tuple[int, int], ...] | None:
-    if not can_filters:
-        return None
-    out = []
-    for f in can_filters:
-        try:
-            mask = int(f["can_mask"])
-            out.append((int(f["can_id"]) & mask, mask))
-        except (KeyError, TypeError, ValueError) as e:
-            raise ValueError(f"a CAN filter needs int 'can_id' and 'can_mask' keys, got {f!r}") from e
-    return tuple(out)
 
 
 class CanNetwork:
@@ -260,11 +253,11 @@ class CanNetwork:
         if on_rx is not None and not callable(on_rx):
             raise TypeError(f"on_rx must be callable, got {on_rx!r}")
         ctrl = CanController(self, name, on_rx)
-        ctrl._filt = _filter_tuple(can_filters)
+        ctrl._filt = parse_filters(can_filters)
         if self._twin:
             # the RX interrupt is called straight from the bus; a bus-off node is muted instead
             bus = TwinBus(self.channel, can_filters=can_filters, rx_callback=ctrl._on_rx)
-            bus._network_node = True
+            bus.mark_network_node()
         else:
             kwargs: dict = {}
             if self.interface == "virtual":
@@ -420,7 +413,7 @@ class CanNetwork:
             clock.schedule_fast(start + 1, self._decide_cb)
         return True
 
-    def _external_send(self, bus: TwinBus, msg: can.Message) -> None:
+    def external_send(self, bus: TwinBus, msg: can.Message) -> None:
         """A frame sent on this channel by a python-can bus that is not a node (a tool)."""
         ctrl = self._external.get(id(bus))
         if ctrl is None or ctrl.bus is not bus:
@@ -517,7 +510,7 @@ class CanNetwork:
         if self._outcome == _DROP:
             self.frames_dropped += 1
         elif self._twin:
-            ctrl.bus._deliver(msg)  # type: ignore[attr-defined]
+            ctrl.bus.deliver(msg)  # type: ignore[attr-defined]
         else:
             self._send_and_drain(ctrl, msg, t)
         if self._listeners:
@@ -545,7 +538,7 @@ class CanNetwork:
         for c in self._nodes:
             if c is ctrl:
                 continue
-            expected = socket_like and _accepts(c._filt, msg.arbitration_id)
+            expected = socket_like and filters_accept(c._filt, msg.arbitration_id)
             bus = c.bus
             while True:
                 m = bus.recv(timeout=0)
@@ -692,8 +685,7 @@ class CanNetwork:
     def _mute(self, c: CanController, muted: bool) -> None:
         bus = c.bus
         if isinstance(bus, TwinBus):
-            bus._muted = muted
-            bus._medium.invalidate()
+            bus.set_muted(muted)
 
     def _recovered(self, c: CanController) -> None:
         c.recovering = False
@@ -708,12 +700,3 @@ class CanNetwork:
 
 def _ignore(msg: can.Message) -> None:
     """on_rx of a node that does not listen."""
-
-
-def _accepts(filt: tuple[tuple[int, int], ...] | None, arbitration_id: int) -> bool:
-    if filt is None:
-        return True
-    for can_id, mask in filt:
-        if arbitration_id & mask == can_id:
-            return True
-    return False

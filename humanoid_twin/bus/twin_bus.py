@@ -9,7 +9,7 @@ the others queue it for ``recv()``.
 When a :class:`~humanoid_twin.bus.network.CanNetwork` owns the channel, frames sent by a bus
 that is not one of the network's nodes (a user script, a python-can tool) are handed to the
 network, which puts them on the wire in virtual time (arbitration, frame length), like any
-node's. The network's own nodes are delivered through ``_deliver`` at the end of each frame.
+node's. The network's own nodes are delivered through ``deliver`` at the end of each frame.
 
 The delivery is zero-copy: every receiver gets the same :class:`can.Message` object. Treat a
 received message as read-only.
@@ -26,6 +26,8 @@ from typing import Any, Protocol
 import can
 from can.bus import BusABC
 
+from humanoid_twin.bus.frames import Filters, filters_accept, parse_filters
+
 DEFAULT_CHANNEL = "humanoid_twin"
 
 RxCallback = Callable[[can.Message], None]
@@ -34,7 +36,7 @@ RxCallback = Callable[[can.Message], None]
 class _Wire(Protocol):
     """What the medium needs from a network that owns the channel."""
 
-    def _external_send(self, bus: TwinBus, msg: can.Message) -> None: ...
+    def external_send(self, bus: TwinBus, msg: can.Message) -> None: ...
 
 
 class _Medium:
@@ -60,7 +62,7 @@ class _Medium:
         r = self._routes.get(key)
         if r is None:
             r = tuple(b for b in self.members
-                      if not b._muted and b._accepts(arbitration_id, is_extended))
+                      if not b.muted and b.accepts(arbitration_id, is_extended))
             self._routes[key] = r
             if not is_extended:
                 self._std_routes[arbitration_id] = r
@@ -153,7 +155,7 @@ class TwinBus(BusABC):
         self._queue: deque[can.Message] = deque()
         self._cond = threading.Condition()
         self._waiting = 0
-        self._filt: tuple[tuple[int, int, bool | None], ...] | None = None
+        self._filt: Filters | None = None
         self._network_node = False  # set by CanNetwork for its own nodes
         self._muted = False         # a bus-off node: receives nothing (set by CanNetwork)
         self._medium = _join(self, channel)
@@ -165,38 +167,31 @@ class TwinBus(BusABC):
 
     # -- filters -----------------------------------------------------------------------------
     def _apply_filters(self, filters: can.typechecking.CanFilters | None) -> None:
-        """Precompute the filters as int tuples (no dict work per frame)."""
-        if not filters:
-            self._filt = None
-        else:
-            out = []
-            for f in filters:
-                try:
-                    can_id = int(f["can_id"])
-                    can_mask = int(f["can_mask"])
-                except (KeyError, TypeError, ValueError) as e:
-                    raise ValueError(
-                        f"a CAN filter needs int 'can_id' and 'can_mask' keys, got {f!r}"
-                    ) from e
-                if can_id < 0 or can_mask < 0 or can_id > 0x1FFFFFFF or can_mask > 0x1FFFFFFF:
-                    raise ValueError(f"CAN filter id/mask out of range: {f!r}")
-                ext = f.get("extended")
-                out.append((can_id & can_mask, can_mask, None if ext is None else bool(ext)))
-            self._filt = tuple(out)
+        """Precompute the filters as int tuples (no dict work per frame; ``frames.parse_filters``)."""
+        self._filt = parse_filters(filters)  # type: ignore[arg-type]
         medium = getattr(self, "_medium", None)
         if medium is not None:
             medium.invalidate()
 
-    def _accepts(self, arbitration_id: int, is_extended: bool) -> bool:
-        filt = self._filt
-        if filt is None:
-            return True
-        for can_id, mask, ext in filt:
-            if ext is not None and ext != is_extended:
-                continue
-            if arbitration_id & mask == can_id:
-                return True
-        return False
+    def accepts(self, arbitration_id: int, is_extended: bool = False) -> bool:
+        """Whether this bus's acceptance filters take a frame with that ID."""
+        return filters_accept(self._filt, arbitration_id, is_extended)
+
+    # -- the wire's side (CanNetwork) ----------------------------------------------------------
+    def mark_network_node(self) -> None:
+        """This bus is a node of the channel's network: its sends go through the network's own
+        arbitration (``CanController.send``), and the network delivers its frames to it."""
+        self._network_node = True
+
+    @property
+    def muted(self) -> bool:
+        """A bus-off node: receives nothing."""
+        return self._muted
+
+    def set_muted(self, muted: bool) -> None:
+        """Mute (bus-off) or unmute this bus's reception (the network's error confinement)."""
+        self._muted = bool(muted)
+        self._medium.invalidate()
 
     # -- transmit ------------------------------------------------------------------------------
     def send(self, msg: can.Message, timeout: float | None = None) -> None:
@@ -211,15 +206,15 @@ class TwinBus(BusABC):
             raise TypeError(f"send() needs a can.Message, got {type(msg).__name__}")
         wire = self._medium.wire
         if wire is not None and not self._network_node:
-            wire._external_send(self, msg)
+            wire.external_send(self, msg)
             return
         if msg.channel is None:
             msg.channel = self.channel
         if not msg.timestamp:
             msg.timestamp = time.time()
-        self._deliver(msg)
+        self.deliver(msg)
 
-    def _deliver(self, msg: can.Message) -> None:
+    def deliver(self, msg: can.Message) -> None:
         """Hand ``msg`` (already on the wire) to every accepting member of the channel."""
         medium = self._medium
         if msg.is_extended_id:
