@@ -2,10 +2,10 @@
 
 Time is an integer number of microseconds. Every activity of the twin is an event on this
 clock: the Master's 250 µs timer, each Slave's 20 ms PWM tick, the end of each CAN frame on
-the wire, each serial byte after its 11 bit times. The plant (MuJoCo) is stepped lazily: any
-component that touches it first calls ``plant.advance_to(clock.now_us)``, which runs the
-physics steps due up to that instant in one ``mj_step(..., nstep=k)`` call. The result is the
-same as stepping physics as events, without a Python call per physics step.
+the wire, each serial byte after its 11 bit times. The plant (MuJoCo) is bound to this clock
+(``Plant.bind_clock``) and steps itself lazily: its every read or write first runs the physics
+steps due up to ``now_us`` in one ``mj_step(..., nstep=k)`` call. The result is the same as
+stepping physics as events, without a Python call per physics step.
 
 Events at the same instant run in the order they were scheduled (a sequence number breaks
 ties), so the same inputs and seed give the same bytes and trajectories, run after run.
@@ -68,6 +68,12 @@ class Clock:
 
         self.schedule(due, tick)
 
+    def schedule_fast(self, t_us: int, callback: Callback) -> None:
+        """:meth:`schedule` without the past check, for a hot path that knows ``t_us >= now_us``
+        (the CAN wire's frame events)."""
+        self._seq = seq = self._seq + 1
+        _heappush(self._queue, (t_us, seq, callback))
+
     def next_event_us(self) -> int | None:
         """Time of the next pending event, or None."""
         return self._queue[0][0] if self._queue else None
@@ -114,10 +120,11 @@ class RealTimePacer:
         """The virtual time that corresponds to wall now."""
         return self._virt0 + int((time.monotonic() - self._wall0) * self.speed * US_PER_S)
 
-    def pace(self, max_step_us: int = 2_000) -> float:
-        """Advance virtual time toward wall time; return the lag in seconds."""
+    def pace(self, max_step_us: int = 2_000, advance_to: Callable[[int], None] | None = None) -> float:
+        """Advance virtual time toward wall time with ``advance_to`` (default: the clock's
+        ``run_until``; the twin passes its own ``Twin.advance_to``); return the lag in seconds."""
         target = self.target_us()
         now = self.clock.now_us
         if target > now:
-            self.clock.run_until(min(target, now + max_step_us))
+            (advance_to or self.clock.run_until)(min(target, now + max_step_us))
         return max(0.0, (target - self.clock.now_us) / US_PER_S)

@@ -28,6 +28,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
+from humanoid_twin.clock import US_PER_S
 from humanoid_twin.hardware import FOOT_OF_SCU, N_SCU, N_SERVOS, PWM_PERIOD_US
 
 if TYPE_CHECKING:
@@ -173,10 +174,10 @@ class FaultInjector:
         """Schedule every fault's start (and end) on the twin's clock."""
         clock = self.twin.clock
         for spec in self.specs:
-            t0 = max(round(spec.t0_s * 1e6), clock.now_us)
+            t0 = max(round(spec.t0_s * US_PER_S), clock.now_us)
             clock.schedule(t0, lambda s=spec: self._start(s))
             if spec.t1_s is not None:
-                clock.schedule(round(spec.t1_s * 1e6), lambda s=spec: self._end(s))
+                clock.schedule(round(spec.t1_s * US_PER_S), lambda s=spec: self._end(s))
             elif spec.kind == "push":
                 clock.schedule(t0 + PUSH_US, lambda s=spec: self._end(s))
         return self
@@ -195,7 +196,6 @@ class FaultInjector:
     def _start(self, spec: FaultSpec) -> None:
         twin = self.twin
         k, a = spec.kind, spec.arg
-        self.twin.plant.advance_to(twin.clock.now_us)
         if k in self._can:
             self._can[k] = a
             self._set_can()
@@ -206,7 +206,7 @@ class FaultInjector:
         elif k == "serial-noise":
             twin.link.set_noise(a, seed=self.seed * 7919 + 1)
         elif k == "deadline":
-            end = spec.t1_s * 1e6 if spec.t1_s is not None else None
+            end = spec.t1_s * US_PER_S if spec.t1_s is not None else None
             ticks = 10**9 if end is None else max(1, math.ceil((end - twin.clock.now_us) / PWM_PERIOD_US))
             twin.slaves[a].inject_deadline_violation(DEADLINE_DELAY_US, ticks)
         elif k == "force-noise":
@@ -224,13 +224,12 @@ class FaultInjector:
         twin.network.force_bus_off(_node_name(spec.arg))
         if spec.t1_s is not None:
             nxt = twin.clock.now_us + BUS_OFF_REFORCE_US
-            if nxt < spec.t1_s * 1e6:
+            if nxt < spec.t1_s * US_PER_S:
                 twin.clock.schedule(nxt, lambda: self._bus_off(spec))
 
     def _end(self, spec: FaultSpec) -> None:
         twin = self.twin
         k, a = spec.kind, spec.arg
-        self.twin.plant.advance_to(twin.clock.now_us)
         if k in self._can:
             self._can[k] = 0.0
             self._set_can()

@@ -91,7 +91,6 @@ class Monitor:
     def sample(self) -> None:
         """One 20 ms sample of the truth (after the boards' ticks at this instant)."""
         twin = self.twin
-        twin.plant.advance_to(twin.clock.now_us)
         if twin.now_s < self.start_s:
             return
         gt = twin.plant.truth()
@@ -109,7 +108,6 @@ class Monitor:
         slave = twin.slaves[scu]
         if twin.now_s < self.start_s or not slave.cop_loaded or not slave.calibrated:
             return
-        twin.plant.advance_to(twin.clock.now_us)
         truth = twin.plant.foot_cop_mm(foot)
         if truth is None:
             return

@@ -51,8 +51,7 @@ def serve(
             if max_seconds is not None and time.monotonic() - wall0 > max_seconds:
                 break
             bridge.poll()
-            lag = pacer.pace(max_step_us=1_000)
-            twin.plant.advance_to(twin.clock.now_us)
+            lag = twin.run_realtime_step(pacer, max_step_us=1_000)
             bridge.poll()
             if lag > 0.5 and not lag_warned:
                 sys.stderr.write(f"humanoid-twin serve: running {lag:.2f} s behind real time\n")

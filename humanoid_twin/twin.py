@@ -18,7 +18,7 @@ import serial
 from humanoid_twin.bus.network import CanNetwork
 from humanoid_twin.bus.protocol_twin import register_link, unregister_link
 from humanoid_twin.bus.serial_link import SerialLink
-from humanoid_twin.clock import US_PER_S, Clock
+from humanoid_twin.clock import US_PER_S, Clock, RealTimePacer
 from humanoid_twin.hardware import N_SCU, PWM_PERIOD_US
 from humanoid_twin.master.master import Master
 from humanoid_twin.master.supervisor import SupervisorConfig
@@ -43,7 +43,8 @@ class Twin:
     ) -> None:
         self.seed = seed
         self.clock = Clock()
-        self.plant = Plant(model_path, seed=seed)
+        # physics time is the clock's: the plant steps itself before any read or write
+        self.plant = Plant(model_path, seed=seed, clock=self.clock)
         self.network = CanNetwork(self.clock, interface=can_interface, channel=can_channel)
         self.link = SerialLink(self.clock)
         self.master = Master(self.clock, self.network, self.link, supervisor)
@@ -66,13 +67,21 @@ class Twin:
         return self.clock.now_us / US_PER_S
 
     def advance_to(self, t_us: int) -> None:
-        """Run every board and bus up to virtual time ``t_us``, then bring the physics there."""
+        """Run every board and bus up to virtual time ``t_us``, then bring the physics there.
+
+        The one way to move the whole twin in time (the serial port's lockstep reads, ``run``,
+        ``serve``); the plant also runs its due physics itself before any read or write.
+        """
         self.clock.run_until(t_us)
         self.plant.advance_to(t_us)
 
     def run_for(self, seconds: float) -> None:
         """Advance the whole twin by ``seconds`` of virtual time."""
         self.advance_to(self.clock.now_us + round(seconds * US_PER_S))
+
+    def run_realtime_step(self, pacer: RealTimePacer, max_step_us: int = 1_000) -> float:
+        """Advance toward wall time by at most ``max_step_us`` (the ``serve`` loop); returns the lag in s."""
+        return pacer.pace(max_step_us, advance_to=self.advance_to)
 
     def every(self, period_us: int, callback: Callable[[], None], first_us: int | None = None) -> None:
         """Call ``callback`` periodically in virtual time (recording, supervisors, tilt profiles)."""

@@ -137,7 +137,6 @@ def _one_leg(pos: np.ndarray, k: np.ndarray, t: np.ndarray, seed: int) -> Verdic
         def sample() -> None:
             if not hold[0] <= twin.now_s <= hold[1]:
                 return
-            twin.plant.advance_to(twin.clock.now_us)
             gt = twin.plant.truth()
             obs["samples"] += 1
             obs["lifted_max_n"] = max(obs["lifted_max_n"], float(np.sum(gt.pad_forces_n["r_foot"])))

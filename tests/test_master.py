@@ -471,7 +471,7 @@ class FullRig(Rig):
         from humanoid_twin.slave.slave import Slave
 
         super().__init__()
-        self.plant = Plant(seed=0)
+        self.plant = Plant(seed=0, clock=self.clock)
         self.slaves = {
             k: Slave(k, self.clock, self.plant, self.net, phase_us=self.PHASES_US[k - 1]) for k in range(1, 9)
         }

@@ -71,7 +71,7 @@ class Rig:
 
     def __init__(self, addresses=range(1, 9), phases: dict[int, int] | None = None, seed: int = 0) -> None:
         self.clock = Clock()
-        self.plant = Plant(seed=seed)
+        self.plant = Plant(seed=seed, clock=self.clock)
         self.net = CanNetwork(self.clock)
         self.rec = Recorder()
         self.net.add_listener(self.rec)

@@ -63,9 +63,27 @@ def test_view_web_answers_http_200_on_loopback_only(tmp_path):
         if not other.startswith("127."):
             with pytest.raises(OSError):
                 socket.create_connection((other, port), timeout=1).close()
+        # SIGTERM to `humanoid-twin view` alone stops rerun's server too (nothing left listening)
+        proc.send_signal(signal.SIGTERM)
+        proc.wait(timeout=15)
+        deadline = time.monotonic() + 10
+        while _port_open(port) and time.monotonic() < deadline:
+            time.sleep(0.2)
+        assert not _port_open(port), "rerun's web server outlived `view --web`"
     finally:
-        os.killpg(proc.pid, signal.SIGTERM)
+        try:
+            os.killpg(proc.pid, signal.SIGKILL)
+        except ProcessLookupError:
+            pass
         proc.wait(timeout=10)
+
+
+def _port_open(port: int) -> bool:
+    try:
+        socket.create_connection((LOOPBACK, port), timeout=1).close()
+        return True
+    except OSError:
+        return False
 
 
 def test_native_view_binds_loopback_and_needs_a_display(tmp_path):

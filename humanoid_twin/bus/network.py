@@ -28,13 +28,12 @@ from __future__ import annotations
 import itertools
 import random
 from collections.abc import Callable
-from heapq import heappush as _heappush
 
 import can
 
 from humanoid_twin.bus.frames import TRAILING_RECESSIVE_BITS, _frame_bits_cached
 from humanoid_twin.bus.twin_bus import TwinBus, get_medium, release_medium
-from humanoid_twin.clock import Clock
+from humanoid_twin.clock import US_PER_S, Clock
 
 TWIN_INTERFACE = "humanoid_twin"
 PIC_TX_BUFFERS = 3              # PIC18F258: TXB0..TXB2 (seed 002 slide 21)
@@ -206,7 +205,7 @@ class CanNetwork:
         self.channel = channel
         self.bitrate = bitrate
         # integer microseconds per bit when the bitrate allows (1 us at 1 Mbit/s), else 0
-        self._bit_us = 1_000_000 // bitrate if 1_000_000 % bitrate == 0 else 0
+        self._bit_us = US_PER_S // bitrate if US_PER_S % bitrate == 0 else 0
         self._twin = interface == TWIN_INTERFACE
         self._medium = None
         if self._twin:
@@ -386,7 +385,7 @@ class CanNetwork:
         if self._bit_us:
             return bits * self._bit_us
         br = self.bitrate
-        return (bits * 1_000_000 + br - 1) // br
+        return (bits * US_PER_S + br - 1) // br
 
     # -- transmit path -----------------------------------------------------------------------
     def _request(self, ctrl: CanController, msg: can.Message) -> bool:
@@ -418,8 +417,7 @@ class CanNetwork:
             start = now if now > idle else idle
             self._busy = True
             self._start = start
-            clock._seq = cseq = clock._seq + 1
-            _heappush(clock._queue, (start + 1, cseq, self._decide_cb))
+            clock.schedule_fast(start + 1, self._decide_cb)
         return True
 
     def _external_send(self, bus: TwinBus, msg: can.Message) -> None:
@@ -491,8 +489,7 @@ class CanNetwork:
             end = start + bits * bu
             self._dom_end = end - TRAILING_RECESSIVE_BITS * bu
             clock = self.clock
-            clock._seq = cseq = clock._seq + 1
-            _heappush(clock._queue, (end - 3 * bu, cseq, self._complete_cb))
+            clock.schedule_fast(end - 3 * bu, self._complete_cb)
         else:
             end = start + self._dur(bits)
             self._dom_end = end - self._dur(TRAILING_RECESSIVE_BITS)
@@ -504,7 +501,7 @@ class CanNetwork:
         _key, _req, ctrl, msg, bits = self._current  # type: ignore[misc]
         self._current = None
         t = self.clock.now_us
-        msg.timestamp = t / 1_000_000
+        msg.timestamp = t / US_PER_S
         msg.channel = self.channel
         msg.is_rx = True
         if ctrl._n_pending:
@@ -536,15 +533,14 @@ class CanNetwork:
             self._busy = True
             self._start = start
             clock = self.clock
-            clock._seq = cseq = clock._seq + 1
-            _heappush(clock._queue, (start + 1, cseq, self._decide_cb))
+            clock.schedule_fast(start + 1, self._decide_cb)
         else:
             self._busy = False
 
     def _send_and_drain(self, ctrl: CanController, msg: can.Message, t_us: int) -> None:
         """Another python-can interface: put the frame on the sender's bus, drain the others."""
         ctrl.bus.send(msg)
-        ts = t_us / 1_000_000
+        ts = t_us / US_PER_S
         socket_like = self.interface != "virtual"
         for c in self._nodes:
             if c is ctrl:
@@ -581,7 +577,7 @@ class CanNetwork:
                 self._rec_dirty = True
         self.busy_us += self._idle_from - self._start
         if self._listeners:
-            err = can.Message(timestamp=self.clock.now_us / 1_000_000, is_error_frame=True,
+            err = can.Message(timestamp=self.clock.now_us / US_PER_S, is_error_frame=True,
                               is_extended_id=False, channel=self.channel, is_rx=True)
             for lst in self._listeners:
                 lst.on_message_received(err)
@@ -660,7 +656,7 @@ class CanNetwork:
         self._schedule_recovery_check(c)
 
     def _bits_in(self, us: int) -> int:
-        return us * self.bitrate // 1_000_000
+        return us * self.bitrate // US_PER_S
 
     def _recovery_progress(self, c: CanController, t: int) -> int:
         """11-recessive-bit sequences seen by ``c`` up to ``t`` if the wire stayed idle."""

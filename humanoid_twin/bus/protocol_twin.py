@@ -25,6 +25,7 @@ import serial
 from serial.serialutil import PortNotOpenError, SerialBase, SerialException
 
 from humanoid_twin.bus.serial_link import SerialLink
+from humanoid_twin.clock import US_PER_S
 
 DEFAULT_STEP_US = 100
 
@@ -153,7 +154,7 @@ class Serial(SerialBase):
         """The twin's virtual time in seconds."""
         if self._link is None:
             raise PortNotOpenError()
-        return self._link.clock.now_us / 1_000_000
+        return self._link.clock.now_us / US_PER_S
 
     def sleep(self, seconds: float) -> None:
         """Let ``seconds`` of virtual time pass (the twin runs meanwhile)."""
@@ -161,7 +162,7 @@ class Serial(SerialBase):
             raise PortNotOpenError()
         if seconds < 0:
             raise ValueError(f"sleep needs seconds >= 0, got {seconds!r}")
-        self._advance(self._link.clock.now_us + round(seconds * 1_000_000))
+        self._advance(self._link.clock.now_us + round(seconds * US_PER_S))
 
     # -- data --------------------------------------------------------------------------------
     def _pull(self, link: SerialLink) -> None:
@@ -186,7 +187,7 @@ class Serial(SerialBase):
             clock = link.clock
             advance = self._advance
             assert advance is not None
-            deadline = None if self._timeout is None else clock.now_us + round(self._timeout * 1_000_000)
+            deadline = None if self._timeout is None else clock.now_us + round(self._timeout * US_PER_S)
             while len(self._rx) < size:
                 now = clock.now_us
                 if deadline is not None and now >= deadline:

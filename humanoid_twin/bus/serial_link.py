@@ -17,7 +17,7 @@ import random
 from collections import deque
 from collections.abc import Callable
 
-from humanoid_twin.clock import Clock
+from humanoid_twin.clock import US_PER_S, Clock
 
 DEFAULT_BAUDRATE = 115200
 _PARITY_BITS = {"N": 0, "E": 1, "O": 1, "M": 1, "S": 1}
@@ -67,7 +67,7 @@ class SerialLink:
         self.parity = parity
         self.stopbits = stopbits
         self.bits_per_byte = 1 + bytesize + _PARITY_BITS[parity] + stopbits
-        self._num = self.bits_per_byte * 1_000_000
+        self._num = self.bits_per_byte * US_PER_S
         self._to_dev = _Direction()
         self._to_host = _Direction()
         self._device_rx: Callable[[int], None] | None = None

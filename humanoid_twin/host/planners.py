@@ -32,6 +32,7 @@ from typing import Any
 
 import numpy as np
 
+from humanoid_twin.clock import US_PER_S
 from humanoid_twin.hardware import N_SCU, N_SERVOS, PWM_PERIOD_US
 from humanoid_twin.protocol.rs232 import ControlType
 
@@ -65,7 +66,7 @@ ANKLE_ROLL, ANKLE_PITCH, KNEE = 0, 1, 2
 HIP_ROLL, HIP_PITCH, HIP_YAW = 0, 1, 2
 LEG_SCUS: tuple[int, ...] = (1, 2, 3, 4)
 
-TICK_S = PWM_PERIOD_US / 1e6
+TICK_S = PWM_PERIOD_US / US_PER_S
 MAX_PERIOD_S = 255 * TICK_S          # the movement period travels as one byte of 20 ms ticks
 
 # Gains per control type: rows servo 1..3, columns (KI, KP, KD), raw bytes of the CAN packets.

@@ -26,6 +26,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, NamedTuple
 
 from humanoid_twin.bus.network import BUS_OFF
+from humanoid_twin.clock import US_PER_S
 from humanoid_twin.hardware import FOOT_OF_SCU, FORCE_SENSOR_XY_MM, N_SCU, PWM_PERIOD_US
 from humanoid_twin.protocol.canframes import SFLAGS_CAN_STATE
 from humanoid_twin.protocol.rs232 import SUPERVISOR_FAULTS, SUPERVISOR_MODES
@@ -89,7 +90,8 @@ class Fault(NamedTuple):
 
     def as_dict(self) -> dict[str, Any]:
         """``{"t_s", "code", "name", "node"}`` (the run summary's ``faults`` entries)."""
-        return {"t_s": round(self.t_us / 1e6, 6), "code": self.code, "name": self.name, "node": self.node}
+        return {"t_s": round(self.t_us / US_PER_S, 6), "code": self.code, "name": self.name,
+                "node": self.node}
 
 
 @dataclass

@@ -13,14 +13,17 @@ from __future__ import annotations
 
 import math
 import numbers
+import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import mujoco
 import numpy as np
 
 from humanoid_twin import hardware
+from humanoid_twin.clock import US_PER_S
 from humanoid_twin.plant import constants as C  # noqa: N812
 from humanoid_twin.plant.geometry import convex_hull, signed_distance
 
@@ -111,21 +114,24 @@ class Plant:
 
     ``Plant()`` loads ``models/scene.xml`` and resets to the ``stand`` keyframe with every PWM
     off (limp servos, as at power-up). ``seed`` fixes the potentiometer offsets (drawn once per
-    plant) and the sensor noise streams (restarted by ``reset``).
+    plant) and the sensor noise streams (restarted by ``reset``). ``clock`` (or ``bind_clock``)
+    puts physics time under the twin's clock: the plant then steps itself before any access.
     """
 
-    def __init__(self, model_path: str | Path | None = None, *, seed: int = 0) -> None:
+    def __init__(self, model_path: str | Path | None = None, *, seed: int = 0, clock: Any = None) -> None:
         path = Path(model_path) if model_path is not None else DEFAULT_MODEL
         self.model_path = path
         self.model, self.load_warnings = _load_model(path)
         self.data = mujoco.MjData(self.model)
         self.seed = int(seed)
         m = self.model
-        ts_us = m.opt.timestep * 1e6
+        ts_us = m.opt.timestep * US_PER_S
         self.timestep_us: int = round(ts_us)
         if self.timestep_us <= 0 or abs(ts_us - self.timestep_us) > 1e-6:
             raise PlantError(f"{path}: timestep {m.opt.timestep} s is not a whole number of microseconds")
         self.t_us: int = 0
+        self._clock: Any = clock
+        self.step_ns_total = 0      # wall time spent in mj_step (boards subtract it from their task time)
 
         def need(kind: mujoco.mjtObj, name: str) -> int:
             idx = mujoco.mj_name2id(m, kind, name)
@@ -226,6 +232,26 @@ class Plant:
         self._force_noise: list[float] = []
         mujoco.mj_forward(m, self.data)
 
+    def bind_clock(self, clock: Any) -> None:
+        """Put physics time under ``clock`` (anything with ``now_us``): from now on every read or
+        write of the plant first runs the physics due up to ``clock.now_us``, in this one place.
+
+        The result is the same as stepping physics as clock events, without a Python call per
+        physics step: nobody outside the plant drags it along by hand.
+        """
+        self._clock = clock
+
+    @property
+    def clock(self) -> Any:
+        """The clock that owns physics time (None: stepped only by explicit ``advance_to``)."""
+        return self._clock
+
+    def _sync(self) -> None:
+        """Run the physics due up to the bound clock's now (nothing without a clock)."""
+        c = self._clock
+        if c is not None and c.now_us - self.t_us >= self.timestep_us:
+            self.advance_to(c.now_us)
+
     def advance_to(self, t_us: int) -> None:
         """Run the physics steps due up to ``t_us`` (never past it) in one ``mj_step`` call.
 
@@ -239,30 +265,35 @@ class Plant:
         k = due // self.timestep_us
         if k <= 0:
             return
+        w0 = time.perf_counter_ns()
         if self._tilt_profile is None:
             mujoco.mj_step(self.model, self.data, nstep=k)
             self.t_us += k * self.timestep_us
+            self.step_ns_total += time.perf_counter_ns() - w0
             return
         grid = _TILT_PROFILE_CHUNK_US
         ts = self.timestep_us
         while k > 0:
             g = self.t_us - self.t_us % grid
             if self._tilt_grid_us != g:
-                self._apply_tilt(self._tilt_profile(g / 1e6))
+                self._apply_tilt(self._tilt_profile(g / US_PER_S))
                 self._tilt_grid_us = g
             n = min(k, max(1, -(-(g + grid - self.t_us) // ts)))
             mujoco.mj_step(self.model, self.data, nstep=n)
             self.t_us += n * ts
             k -= n
+        self.step_ns_total += time.perf_counter_ns() - w0
 
     # --- the platform -----------------------------------------------------------------------------
     def set_tilt_deg(self, deg: float) -> None:
         """Tilt the platform about the world lateral (y) axis, toes up positive (cancels a profile)."""
+        self._sync()
         self._tilt_profile = None
         self._apply_tilt(deg)
 
     def set_tilt_profile(self, fn: Callable[[float], float] | None) -> None:
         """Tilt the platform as ``fn(t_s) -> deg`` (evaluated in ``advance_to``); None stops it."""
+        self._sync()
         if fn is not None and not callable(fn):
             raise PlantInputError(f"tilt profile must be a callable t_s -> deg, got {fn!r}")
         self._tilt_profile = fn
@@ -304,6 +335,7 @@ class Plant:
         switches that servo's PWM off (the servo goes limp: no actuator torque, only its gear
         friction and damping remain).
         """
+        self._sync()
         rows = self._servo.get(scu) if type(scu) is int else None
         if rows is None:
             _check_scu(scu)
@@ -341,6 +373,7 @@ class Plant:
         CURRENT_PULSE_FULL_US * min(1, |motor torque| / stall) + idle when powered, where the
         motor torque is the actuator force minus the back-EMF damping term; 0 when PWM is off.
         """
+        self._sync()
         rows = self._servo.get(scu) if type(scu) is int else None
         if rows is None:
             _check_scu(scu)
@@ -373,6 +406,7 @@ class Plant:
         normal force; an unloaded sensor reads 0. Boards without a foot read [0, 0, 0, 0]
         (PIC2 ``sampleExtraSensors`` input).
         """
+        self._sync()
         adrs = self._foot_touch_of_scu.get(scu) if type(scu) is int else None
         if adrs is None:
             _check_scu(scu)
@@ -413,6 +447,7 @@ class Plant:
     def set_force_noise(self, counts: int) -> None:
         """Fault injection: add uniform noise of +-``counts`` 8-bit ADC counts to every force
         sensor reading (seeded by the plant's seed); 0 removes it."""
+        self._sync()
         top = hardware.FORCE_ADC_MAX
         if isinstance(counts, bool) or not isinstance(counts, int) or not 0 <= counts <= top:
             raise PlantInputError(f"force noise must be 0..{hardware.FORCE_ADC_MAX} counts, got {counts!r}")
@@ -422,6 +457,7 @@ class Plant:
     def set_force_stuck(self, scu: int, stuck: bool = True) -> None:
         """Fault injection: the four force sensors of the foot of ``scu`` freeze at their next
         reading (True) or work again (False)."""
+        self._sync()
         if scu not in self._foot_touch_of_scu:
             feet = sorted(self._foot_touch_of_scu)
             raise PlantInputError(f"SCU {scu!r} has no force-sensing foot ({feet})")
@@ -434,6 +470,7 @@ class Plant:
     def set_servo_stuck(self, scu: int, i: int, stuck: bool = True) -> None:
         """Fault injection: servo ``i`` (0..2) of ``scu`` jams where its shaft is now (its pulses
         are ignored; it keeps holding that angle) until ``stuck`` is False."""
+        self._sync()
         _check_scu(scu)
         if not isinstance(i, int) or not 0 <= i < hardware.N_SERVOS:
             raise PlantInputError(f"servo index must be 0..{hardware.N_SERVOS - 1}, got {i!r}")
@@ -447,6 +484,7 @@ class Plant:
     def set_trunk_force(self, forward_n: float) -> None:
         """Fault injection: a horizontal force (N) on the trunk's centre of mass, world forward
         (+x; negative: backward); 0 removes it."""
+        self._sync()
         f = float(forward_n)
         if not math.isfinite(f):
             raise PlantInputError(f"trunk force must be finite, got {forward_n!r}")
@@ -455,6 +493,7 @@ class Plant:
 
     def servo_angle_deg(self, scu: int, i: int) -> float:
         """True shaft angle of servo ``i`` (0..2) of ``scu``, servo frame, degrees (ground truth)."""
+        self._sync()
         _check_scu(scu)
         if not isinstance(i, int) or not 0 <= i < hardware.N_SERVOS:
             raise PlantInputError(f"servo index must be 0..{hardware.N_SERVOS - 1}, got {i!r}")
@@ -464,6 +503,7 @@ class Plant:
     def set_external_torque(self, joint: str, torque_nm: float) -> None:
         """Apply a constant external torque (N.m, about the joint axis) to ``joint``: a load on
         its servo for bench experiments and fault injection. 0 removes it."""
+        self._sync()
         j = mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_JOINT, joint) if isinstance(joint, str) else -1
         if j < 0 or self.model.jnt_type[j] != mujoco.mjtJoint.mjJNT_HINGE:
             raise PlantInputError(f"no servo joint named {joint!r}")
@@ -474,6 +514,7 @@ class Plant:
 
     def servo_powered(self, scu: int, i: int) -> bool:
         """Whether servo ``i`` of ``scu`` currently receives PWM."""
+        self._sync()
         _check_scu(scu)
         return self._powered[self._servo[scu][i][2]]
 
@@ -498,6 +539,7 @@ class Plant:
         normal component, as ``mj_contactForce`` gives it), not from the touch sensors. Computed
         once per physics instant (the monitor and the recorder ask at the same instants).
         """
+        self._sync()
         key = (self.t_us, self._tilt_deg, self._epoch, self.data.qpos.tobytes(), self.data.qvel.tobytes())
         if self._truth_key == key:
             return self._truth_cached
@@ -524,7 +566,7 @@ class Plant:
             cop = None
             margin = -math.inf
         return GroundTruth(
-            t_s=self.t_us / 1e6,
+            t_s=self.t_us / US_PER_S,
             com=d.subtree_com[self._trunk].copy(),
             trunk_tilt_deg=tilt,
             trunk_height_m=height,
@@ -574,6 +616,7 @@ class Plant:
     def foot_cop_mm(self, foot: str) -> np.ndarray | None:
         """Ground-truth CoP of one foot (foot frame, mm), None when unloaded: the part of
         :meth:`truth` a per-tick comparison needs, without the rest."""
+        self._sync()
         if foot not in FOOT_BODIES:
             raise PlantInputError(f"unknown foot {foot!r}; the feet are {', '.join(FOOT_BODIES)}")
         f = FOOT_BODIES.index(foot)
@@ -595,6 +638,7 @@ class Plant:
 
     def body_poses(self) -> tuple[tuple[str, ...], np.ndarray, np.ndarray]:
         """Names, world positions (n, 3) and quaternions (n, 4, xyzw) of every body but the world."""
+        self._sync()
         d = self.data
         return self._body_names, d.xpos[1:].copy(), d.xquat[1:][:, [1, 2, 3, 0]].copy()
 

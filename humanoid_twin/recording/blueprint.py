@@ -32,7 +32,7 @@ LEG_SCUS: tuple[int, ...] = (1, 2, 3, 4)     # right leg, left leg, right hip, l
 
 # The 3D eye: framed on the robot (about 0.5 m tall, standing at the origin, facing +x), seen from
 # its front right, a little above the hips, instead of rerun's default framing of the whole floor.
-EYE_POSITION = (0.85, -0.75, 0.50)
+EYE_POSITION = (0.70, -0.60, 0.45)
 EYE_TARGET = (0.0, 0.0, 0.22)
 # Legends: in the top-left corner of each plot, where the joint plots start from rest.
 _LEGEND = rrb.PlotLegend(corner="LeftTop", visible=True)
@@ -153,8 +153,12 @@ def default_blueprint(
         name="Supervisor",
     )
     tabs: list[rrb.Container] = []
-    if legs:
-        tabs.append(_joint_grid(legs, "Leg joints"))
+    # one tab per leg (its hip board and its leg board: 6 joints, 3 rows), so each plot is tall
+    # enough for its legend to name all five series beside the curves
+    for side, pair in (("Right leg joints", (3, 1)), ("Left leg joints", (4, 2))):
+        mine = [s for s in pair if s in legs]
+        if mine:
+            tabs.append(_joint_grid(mine, side))
     tabs += [currents]
     if feet:
         tabs += [forces, cop]
@@ -163,7 +167,7 @@ def default_blueprint(
         tabs.append(_joint_grid(upper, "Upper body"))
     return rrb.Blueprint(
         rrb.Horizontal(left, rrb.Tabs(*tabs), column_shares=[2, 3]),
-        rrb.TimePanel(timeline="sim_time"),
+        rrb.TimePanel(timeline="sim_time", state="collapsed"),
         rrb.BlueprintPanel(state="collapsed"),
         rrb.SelectionPanel(state="collapsed"),
     )

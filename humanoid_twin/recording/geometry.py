@@ -45,7 +45,7 @@ def log_foot_static(rec: Any, scu: int) -> None:
     rec.log(f"{v}/cop/truth", rr.Points2D([[0.0, 0.0]], radii=[3.0], colors=[GREEN]), static=True)
     # the CoP legend beside the outline: the two moving points often coincide, so their labels
     # would sit on top of each other
-    legend = [[hw + 12.0, -hl + 8.0], [hw + 12.0, -hl + 24.0]]
+    legend = [[-hw, -hl - 50.0], [-hw, -hl - 26.0]]        # above the toes, one under the other
     rec.log(f"{v}/legend", rr.Points2D(legend, radii=[4.0, 3.0], colors=[ORANGE, GREEN],
                                        labels=["CoP firmware", "CoP truth"], show_labels=True), static=True)
 

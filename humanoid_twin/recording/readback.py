@@ -100,7 +100,7 @@ def read_rrd_scalars(
     return t_all[order], (arr[:, 0] if width == 1 else arr)
 
 
-def _rerun_cli() -> pathlib.Path:
+def rerun_executable() -> pathlib.Path:
     """The ``rerun`` executable shipped with rerun-sdk (the ``rerun_cli`` package)."""
     override = os.environ.get("RERUN_CLI_PATH")
     if override:
@@ -121,7 +121,7 @@ def verify_rrd(path: str | pathlib.Path, timeout_s: float = 120.0) -> None:
     if not p.is_file():
         raise FileNotFoundError(f"recording {str(p)!r} does not exist")
     res = subprocess.run(
-        [str(_rerun_cli()), "rrd", "verify", str(p)], capture_output=True, text=True, timeout=timeout_s
+        [str(rerun_executable()), "rrd", "verify", str(p)], capture_output=True, text=True, timeout=timeout_s
     )
     if res.returncode != 0:
         raise RrdReadError(f"rerun rrd verify {str(p)!r} failed: {(res.stderr or res.stdout).strip()}")
@@ -136,7 +136,7 @@ def compact_rrd(path: str | pathlib.Path, timeout_s: float = 600.0) -> tuple[int
     before = p.stat().st_size
     tmp = p.with_name(f".{p.name}.compact.rrd")
     try:
-        res = subprocess.run([str(_rerun_cli()), "rrd", "optimize", str(p), "-o", str(tmp)],
+        res = subprocess.run([str(rerun_executable()), "rrd", "optimize", str(p), "-o", str(tmp)],
                              capture_output=True, text=True, timeout=timeout_s)
         if res.returncode != 0 or not tmp.is_file():
             raise RrdReadError(f"rerun rrd optimize {str(p)!r} failed: {(res.stderr or res.stdout).strip()}")

@@ -191,7 +191,7 @@ class Recorder:
         columns per :class:`Column`, in table order."""
         twin = self.twin
         plant = twin.plant
-        for attr in ("truth", "body_poses", "geometry", "servo_angle_deg", "advance_to", "tilt_deg"):
+        for attr in ("truth", "body_poses", "geometry", "servo_angle_deg", "tilt_deg"):
             if not hasattr(plant, attr):
                 raise RecorderError(f"the twin's plant has no {attr}(): cannot record ground truth")
         self._feet = [s for s in self.scus if s in FOOT_OF_SCU]
@@ -249,7 +249,6 @@ class Recorder:
         twin = self.twin
         plant = twin.plant
         now = twin.clock.now_us
-        plant.advance_to(now)        # physics due anyway (lazy stepping): not the recorder's cost
         w0 = time.perf_counter()
         i = self._n
         self._t[i] = now

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import os
 import pathlib
+import signal
 import socket
 import subprocess
 import sys
@@ -27,8 +28,11 @@ class ViewerError(RuntimeError):
 
 
 def _rerun() -> list[str]:
-    # ``python -m rerun``: the viewer of the installed rerun-sdk, with or without an activated venv
-    return [sys.executable, "-m", "rerun"]
+    # the ``rerun`` executable of the installed rerun-sdk, started directly (not through its
+    # Python wrapper, which would not pass SIGTERM on), with or without an activated venv
+    from humanoid_twin.recording.readback import rerun_executable
+
+    return [str(rerun_executable())]
 
 
 def native_viewer_command(path: str | pathlib.Path) -> list[str]:
@@ -78,7 +82,20 @@ def view(path: str | pathlib.Path, *, web: bool = False, web_port: int = DEFAULT
             raise ViewerError("no display (DISPLAY/WAYLAND_DISPLAY unset): use `view --web FILE.rrd` "
                               "and open the printed URL in a browser")
         cmd = native_viewer_command(path)
+    proc = subprocess.Popen(cmd)
+
+    def _forward(signum: int, frame: object) -> None:   # SIGTERM/SIGHUP: stop rerun too, not orphan it
+        proc.terminate()
+
+    old = {sig: signal.signal(sig, _forward) for sig in (signal.SIGTERM, signal.SIGHUP)}
     try:
-        return subprocess.call(cmd)
-    except KeyboardInterrupt:
+        return proc.wait()
+    except KeyboardInterrupt:      # Ctrl-C reaches rerun too (same process group)
+        proc.terminate()
+        proc.wait(10)
         return 0
+    finally:
+        for sig, handler in old.items():
+            signal.signal(sig, handler)
+        if proc.poll() is None:
+            proc.kill()

@@ -5,10 +5,12 @@
 an event on the lockstep clock every ``hardware.PWM_PERIOD_US`` from ``phase_us``, and the
 calibration is a state machine run by the same tick (it counts ticks, as the manual's lists do).
 The CAN receive interrupt (``lowISR``, module CAN) runs whenever a frame ends on the wire.
+The board sees the robot only through the plant's servo/sensor calls (``set_pwm``, ``read_servos``,
+``read_force_adc``); the plant runs the physics due up to the clock's now itself (``Plant.bind_clock``).
 
 Tick order (docs/firmware.md, "Slave"), at the start of each PWM period:
 
-1. ``plant.advance_to(now)``; ``checkCan`` (bus-off recovery); deadline check;
+1. ``checkCan`` (bus-off recovery); deadline check;
 2. ``updateServoMeasures`` / ``finalizeServoMeasures`` (period that ended: positions, filtered;
    velocities; currents), ``sampleExtraSensors`` (force), ``calcCoP`` on a leg board;
 3. a Calib request (control byte bit 6, 0 -> 1, latched by ``lowISR``) restarts ``calibration``;
@@ -72,6 +74,8 @@ class Slave:
             raise ValueError(f"Slave address must be an SCU address 1..{N_SCU}, got {address!r}")
         if isinstance(phase_us, bool) or not isinstance(phase_us, int) or phase_us < 0:
             raise ValueError(f"phase_us must be a non-negative int of microseconds, got {phase_us!r}")
+        if plant is not None and getattr(plant, "clock", clock) is not clock:
+            raise ValueError("the plant must run on the board's clock (Plant(..., clock=clock))")
         self.address = address
         self.clock = clock
         self.plant = plant
@@ -132,7 +136,6 @@ class Slave:
     def emergency_stop(self) -> None:
         """Category-0 stop (docs/supervisor.md): an actuation packet switched the PWM off while it
         was on; the pulses stop at once (not at the next tick) and the status says PWM off."""
-        self.plant.advance_to(self.clock.now_us)
         self.pic.statusPWM(False)
         self.sensors.sysStatus.pwm = False
         self.can.prepareSensorPackets()
@@ -172,8 +175,8 @@ class Slave:
     def loop(self) -> None:
         """One pass of the main loop (fig. 6), at the start of a PWM period."""
         now = self.clock.now_us
-        self.plant.advance_to(now)            # the physics up to now: not the board's task time
         t0 = time.perf_counter_ns()
+        step0 = self.plant.step_ns_total      # the physics due now runs at the first plant read:
         self.ticks += 1
         late = now > self._due_us
         if late:
@@ -257,7 +260,7 @@ class Slave:
         st.deadlineError = late
         can_.prepareSensorPackets()
         can_.bus_off_seen = False
-        dt = time.perf_counter_ns() - t0
+        dt = time.perf_counter_ns() - t0 - (self.plant.step_ns_total - step0)  # not the board's task time
         self.task_ns_total += dt
         if dt > self.task_ns_max:
             self.task_ns_max = dt
