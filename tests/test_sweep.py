@@ -8,6 +8,7 @@ import json
 import os
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import pytest
@@ -179,3 +180,28 @@ def test_a_run_past_the_timeout_is_a_row_with_its_error(tmp_path, capsys):
     assert rc == 0 and "1 runs, 1 failed" in stdout
     (row,) = _rows(out)
     assert row == {"tilt": "0", "seed": "0", "error": "RuntimeError: timeout: the run took more than 0.5 s"}
+
+
+def test_sigterm_keeps_the_finished_runs_and_a_rerun_resumes(tmp_path):
+    out = tmp_path / "t.csv"
+    argv = RUN + ["sweep", "stand", "--param", "tilt=0,1,2", "--duration", "10", "--jobs", "1",
+                  "--out", str(out)]
+    proc = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        for _ in range(600):                     # the table appears with the first finished run
+            if out.exists() or proc.poll() is not None:
+                break
+            time.sleep(0.1)
+        proc.send_signal(15)
+        _, err = proc.communicate(timeout=120)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    assert proc.returncode == 130 and "interrupted" in err
+    done = _rows(out)
+    assert 1 <= len(done) < 3 and all(r["error"] == "" for r in done)
+    assert [p.name for p in tmp_path.iterdir()] == ["t.csv"]    # no temporary file left behind
+    rerun = subprocess.run(argv, capture_output=True, text=True, timeout=120)
+    assert rerun.returncode == 0 and f"{len(done)} of 3 runs already in" in rerun.stderr
+    assert _rows(out)[:len(done)] == done and len(_rows(out)) == 3

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import math
 import os
+import signal
 import sys
 from pathlib import Path
 from typing import Any
@@ -183,8 +184,16 @@ def sweep_command(args: argparse.Namespace, parser: argparse.ArgumentParser) -> 
         where = args.address or "a local Ray" if args.backend == "ray" else "this machine"
         progress.write(f"sweep: {len(points)} runs of {args.scenario} on {where}"
                        f"{f' ({args.jobs} jobs)' if args.jobs else ''} into {args.out}\n")
-    rows = run_sweep(points, task, args.out, jobs=args.jobs, backend=args.backend, address=args.address,
-                     progress=progress)
+
+    def _interrupt(signum: int, frame: object) -> None:
+        raise KeyboardInterrupt   # SIGTERM like Ctrl-C: the table keeps every finished run, exit 130
+
+    previous = signal.signal(signal.SIGTERM, _interrupt)
+    try:
+        rows = run_sweep(points, task, args.out, jobs=args.jobs, backend=args.backend,
+                         address=args.address, progress=progress)
+    finally:
+        signal.signal(signal.SIGTERM, previous)
     failed = sum(bool(r.get("error")) for r in rows)
     print(f"{args.out}: {len(rows)} runs, {failed} failed")
     if args.plot is not None:
