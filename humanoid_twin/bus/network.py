@@ -31,11 +31,21 @@ from collections.abc import Callable
 
 import can
 
+from humanoid_twin.bus.confinement import (  # noqa: F401  (re-exported: the error-state names)
+    BUS_OFF,
+    BUS_OFF_LIMIT,
+    ERROR_ACTIVE,
+    ERROR_PASSIVE,
+    ERROR_STATE_CODE,
+    PASSIVE_LIMIT,
+    RECOVERY_SEQUENCES,
+    ErrorConfinement,
+)
+from humanoid_twin.bus.foreign import ForeignPath, open_foreign_bus
 from humanoid_twin.bus.frames import (
     TRAILING_RECESSIVE_BITS,
     Filters,
     _frame_bits_cached,
-    filters_accept,
     parse_filters,
 )
 from humanoid_twin.bus.twin_bus import TwinBus, get_medium, release_medium
@@ -45,14 +55,6 @@ TWIN_INTERFACE = "humanoid_twin"
 PIC_TX_BUFFERS = 3              # PIC18F258: TXB0..TXB2 (seed 002 slide 21)
 EXTERNAL_TX_QUEUE = 64          # an outside python-can bus (a tool): a socketcan-like TX queue
 
-ERROR_ACTIVE = "error-active"
-ERROR_PASSIVE = "error-passive"
-BUS_OFF = "bus-off"
-ERROR_STATE_CODE = {ERROR_ACTIVE: 0, ERROR_PASSIVE: 1, BUS_OFF: 2}   # SPEC.md section 2
-
-PASSIVE_LIMIT = 127             # TEC or REC > 127 -> error-passive
-BUS_OFF_LIMIT = 255             # TEC > 255 -> bus-off
-RECOVERY_SEQUENCES = 128        # 128 occurrences of 11 consecutive recessive bits
 # error frame after a CRC error: detected after the ACK delimiter, 6-bit error flag, 8-bit
 # error delimiter, 3-bit intermission: an error frame takes frame_bits - 10 + 17 bits.
 ERROR_FLAG_BITS = 6
@@ -172,8 +174,12 @@ class CanController:
             self._on_rx(msg)
 
 
-class CanNetwork:
+class CanNetwork(ErrorConfinement, ForeignPath):
     """The CAN wire: virtual-time frame timing, arbitration by ID, error counters.
+
+    This module holds the wire's timing and arbitration; the error confinement (TEC/REC,
+    error-passive, bus-off and its recovery) is ``bus/confinement.py`` and the path through a
+    foreign python-can interface (virtual, socketcan) is ``bus/foreign.py``.
 
     :param clock: the twin's lockstep clock.
     :param interface: ``"humanoid_twin"`` (default, filtered zero-copy delivery), ``"virtual"``
@@ -259,11 +265,7 @@ class CanNetwork:
             bus = TwinBus(self.channel, can_filters=can_filters, rx_callback=ctrl._on_rx)
             bus.mark_network_node()
         else:
-            kwargs: dict = {}
-            if self.interface == "virtual":
-                kwargs["preserve_timestamps"] = True
-            bus = can.Bus(interface=self.interface, channel=self.channel, can_filters=can_filters,
-                          receive_own_messages=False, **kwargs)
+            bus = open_foreign_bus(self.interface, self.channel, can_filters)
         ctrl.bus = bus
         self._controllers[name] = ctrl
         self._nodes.append(ctrl)
@@ -530,27 +532,6 @@ class CanNetwork:
         else:
             self._busy = False
 
-    def _send_and_drain(self, ctrl: CanController, msg: can.Message, t_us: int) -> None:
-        """Another python-can interface: put the frame on the sender's bus, drain the others."""
-        ctrl.bus.send(msg)
-        ts = t_us / US_PER_S
-        socket_like = self.interface != "virtual"
-        for c in self._nodes:
-            if c is ctrl:
-                continue
-            expected = socket_like and filters_accept(c._filt, msg.arbitration_id)
-            bus = c.bus
-            while True:
-                m = bus.recv(timeout=0)
-                if m is None and expected:
-                    m = bus.recv(timeout=0.05)   # kernel loopback may lag a little
-                if m is None:
-                    break
-                expected = False
-                m.timestamp = ts
-                m.channel = self.channel
-                c._on_frame(m)
-
     def _error(self) -> None:
         """A corrupted frame: error frame, counters, automatic retransmission."""
         e = self._current
@@ -601,101 +582,6 @@ class CanNetwork:
         if cur is not None and cur[2] is ctrl:
             self._current_aborted = True
         return n
-
-    # -- error confinement -------------------------------------------------------------------
-    def _rx_success(self, sender: CanController) -> None:
-        dirty = False
-        for c in self._nodes:
-            if c is sender or c._off:
-                continue
-            r = c.rec
-            if r:
-                c.rec = r - 1 if r <= PASSIVE_LIMIT else 119   # ISO 11898: back to 119..127
-                self._update_state(c)
-                if c.rec:
-                    dirty = True
-        self._rec_dirty = dirty
-
-    def _update_state(self, c: CanController) -> None:
-        if c.state == BUS_OFF:
-            return
-        if c.tec > BUS_OFF_LIMIT:
-            c.tec = BUS_OFF_LIMIT      # the PIC's TXERRCNT is an 8-bit register
-            c.state = BUS_OFF
-            c._off = True
-            self._mute(c, True)
-            c.bus_off_count += 1
-            # the TX buffers are cleared: pending requests are dropped (a frame of c's still
-            # on the wire is not retransmitted: c is off)
-            self._abort(c)
-            c._n_pending = 0
-        elif c.tec > PASSIVE_LIMIT or c.rec > PASSIVE_LIMIT:
-            c.state = ERROR_PASSIVE
-        else:
-            c.state = ERROR_ACTIVE
-
-    def _clear_status(self, c: CanController) -> None:
-        if c.state != BUS_OFF:
-            c.tec = 0
-            c.rec = 0
-            c.state = ERROR_ACTIVE
-            return
-        if c.recovering:
-            return
-        c.recovering = True
-        c._rec_count = 0
-        c._rec_mark = self.clock.now_us
-        self._recovering.append(c)
-        self._schedule_recovery_check(c)
-
-    def _bits_in(self, us: int) -> int:
-        return us * self.bitrate // US_PER_S
-
-    def _recovery_progress(self, c: CanController, t: int) -> int:
-        """11-recessive-bit sequences seen by ``c`` up to ``t`` if the wire stayed idle."""
-        begin = c._rec_mark if c._rec_mark > self._dom_end else self._dom_end
-        if t <= begin:
-            return c._rec_count
-        return c._rec_count + self._bits_in(t - begin) // TRAILING_RECESSIVE_BITS
-
-    def _close_recovery_runs(self, start: int) -> None:
-        """A new frame starts at ``start``: close the recessive run of every recovering node."""
-        for c in list(self._recovering):
-            c._rec_count = self._recovery_progress(c, start)
-            c._rec_mark = start
-            if c._rec_count >= RECOVERY_SEQUENCES:
-                self._recovered(c)
-
-    def _schedule_recovery_check(self, c: CanController) -> None:
-        begin = max(c._rec_mark, self._dom_end, self.clock.now_us)
-        need = RECOVERY_SEQUENCES - c._rec_count
-        t = begin + self._dur(need * TRAILING_RECESSIVE_BITS)
-
-        def check() -> None:
-            if not c.recovering:
-                return
-            now = self.clock.now_us
-            if self._recovery_progress(c, now) >= RECOVERY_SEQUENCES:
-                self._recovered(c)
-            else:
-                self._schedule_recovery_check(c)
-
-        self.clock.schedule(t, check)
-
-    def _mute(self, c: CanController, muted: bool) -> None:
-        bus = c.bus
-        if isinstance(bus, TwinBus):
-            bus.set_muted(muted)
-
-    def _recovered(self, c: CanController) -> None:
-        c.recovering = False
-        c._off = False
-        self._mute(c, False)
-        c.tec = 0
-        c.rec = 0
-        c.state = ERROR_ACTIVE
-        c.recoveries += 1
-        self._recovering.remove(c)
 
 
 def _ignore(msg: can.Message) -> None:

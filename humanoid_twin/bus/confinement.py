@@ -1,0 +1,143 @@
+"""Error confinement of the CAN wire (ISO 11898 as the PIC18F258 implements it; seed 002
+slides 25-27, docs/buses.md): transmit/receive error counters, error-active -> error-passive ->
+bus-off, and the bus-off recovery after 128 sequences of 11 recessive bits.
+
+``ErrorConfinement`` is the part of :class:`humanoid_twin.bus.network.CanNetwork` that keeps
+these counters; the wire's timing and arbitration (``network.py``) calls it when a frame
+completes (``_rx_success``), when an error frame ends one (``_update_state``), and when a
+board clears its status (``_clear_status``).
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Any
+
+from humanoid_twin.bus.frames import TRAILING_RECESSIVE_BITS
+from humanoid_twin.bus.twin_bus import TwinBus
+from humanoid_twin.clock import US_PER_S
+
+if TYPE_CHECKING:
+    from humanoid_twin.bus.network import CanController
+
+ERROR_ACTIVE = "error-active"
+ERROR_PASSIVE = "error-passive"
+BUS_OFF = "bus-off"
+ERROR_STATE_CODE = {ERROR_ACTIVE: 0, ERROR_PASSIVE: 1, BUS_OFF: 2}   # the status byte's CAN state
+
+PASSIVE_LIMIT = 127             # TEC or REC > 127 -> error-passive
+BUS_OFF_LIMIT = 255             # TEC > 255 -> bus-off
+RECOVERY_SEQUENCES = 128        # 128 occurrences of 11 consecutive recessive bits
+
+
+class ErrorConfinement:
+    """TEC/REC, error states and bus-off recovery of every node on one wire (a mixin of
+    ``CanNetwork``: it reads the wire's clock, nodes, bit rate and last dominant instant)."""
+
+    __slots__ = ()
+    clock: Any
+    bitrate: int
+    _nodes: list[CanController]
+    _recovering: list[CanController]
+    _rec_dirty: bool
+    _dom_end: int
+
+    def _dur(self, bits: int) -> int:  # pragma: no cover - provided by CanNetwork
+        raise NotImplementedError
+
+    def _abort(self, ctrl: CanController) -> int:  # pragma: no cover - provided by CanNetwork
+        raise NotImplementedError
+
+    def _rx_success(self, sender: CanController) -> None:
+        dirty = False
+        for c in self._nodes:
+            if c is sender or c._off:
+                continue
+            r = c.rec
+            if r:
+                c.rec = r - 1 if r <= PASSIVE_LIMIT else 119   # ISO 11898: back to 119..127
+                self._update_state(c)
+                if c.rec:
+                    dirty = True
+        self._rec_dirty = dirty
+
+    def _update_state(self, c: CanController) -> None:
+        if c.state == BUS_OFF:
+            return
+        if c.tec > BUS_OFF_LIMIT:
+            c.tec = BUS_OFF_LIMIT      # the PIC's TXERRCNT is an 8-bit register
+            c.state = BUS_OFF
+            c._off = True
+            self._mute(c, True)
+            c.bus_off_count += 1
+            # the TX buffers are cleared: pending requests are dropped (a frame of c's still
+            # on the wire is not retransmitted: c is off)
+            self._abort(c)
+            c._n_pending = 0
+        elif c.tec > PASSIVE_LIMIT or c.rec > PASSIVE_LIMIT:
+            c.state = ERROR_PASSIVE
+        else:
+            c.state = ERROR_ACTIVE
+
+    def _clear_status(self, c: CanController) -> None:
+        if c.state != BUS_OFF:
+            c.tec = 0
+            c.rec = 0
+            c.state = ERROR_ACTIVE
+            return
+        if c.recovering:
+            return
+        c.recovering = True
+        c._rec_count = 0
+        c._rec_mark = self.clock.now_us
+        self._recovering.append(c)
+        self._schedule_recovery_check(c)
+
+    def _bits_in(self, us: int) -> int:
+        return us * self.bitrate // US_PER_S
+
+    def _recovery_progress(self, c: CanController, t: int) -> int:
+        """11-recessive-bit sequences seen by ``c`` up to ``t`` if the wire stayed idle."""
+        begin = c._rec_mark if c._rec_mark > self._dom_end else self._dom_end
+        if t <= begin:
+            return c._rec_count
+        return c._rec_count + self._bits_in(t - begin) // TRAILING_RECESSIVE_BITS
+
+    def _close_recovery_runs(self, start: int) -> None:
+        """A new frame starts at ``start``: close the recessive run of every recovering node."""
+        for c in list(self._recovering):
+            c._rec_count = self._recovery_progress(c, start)
+            c._rec_mark = start
+            if c._rec_count >= RECOVERY_SEQUENCES:
+                self._recovered(c)
+
+    def _schedule_recovery_check(self, c: CanController) -> None:
+        begin = max(c._rec_mark, self._dom_end, self.clock.now_us)
+        need = RECOVERY_SEQUENCES - c._rec_count
+        t = begin + self._dur(need * TRAILING_RECESSIVE_BITS)
+
+        def check() -> None:
+            if not c.recovering:
+                return
+            now = self.clock.now_us
+            if self._recovery_progress(c, now) >= RECOVERY_SEQUENCES:
+                self._recovered(c)
+            else:
+                self._schedule_recovery_check(c)
+
+        self.clock.schedule(t, check)
+
+    def _mute(self, c: CanController, muted: bool) -> None:
+        bus = c.bus
+        if isinstance(bus, TwinBus):
+            bus.set_muted(muted)
+
+    def _recovered(self, c: CanController) -> None:
+        c.recovering = False
+        c._off = False
+        self._mute(c, False)
+        c.tec = 0
+        c.rec = 0
+        c.state = ERROR_ACTIVE
+        c.recoveries += 1
+        self._recovering.remove(c)
+

@@ -1,0 +1,61 @@
+"""The CAN wire through a foreign python-can interface (``virtual``, ``socketcan``).
+
+With ``--can-interface virtual`` (or socketcan on a vcan channel) each node owns a real
+python-can bus of that interface; the wire's virtual-time timing and arbitration stay the
+twin's own (``network.py``): at the end of each frame the sender's bus sends it and every other
+node's bus is drained, and the frames it receives (filtered by python-can, or by the kernel on
+socketcan) reach the node's receive interrupt stamped with the virtual time. The frames and
+their instants are the same as on the default ``humanoid_twin`` interface (tests/test_bus_can.py).
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Any
+
+import can
+
+from humanoid_twin.bus.frames import filters_accept
+from humanoid_twin.clock import US_PER_S
+
+if TYPE_CHECKING:
+    from humanoid_twin.bus.network import CanController
+
+
+def open_foreign_bus(interface: str, channel: str, can_filters: list[dict] | None) -> can.BusABC:
+    """A node's own bus on a foreign python-can interface (its acceptance filters applied)."""
+    kwargs: dict = {}
+    if interface == "virtual":
+        kwargs["preserve_timestamps"] = True
+    return can.Bus(interface=interface, channel=channel, can_filters=can_filters,
+                   receive_own_messages=False, **kwargs)
+
+
+class ForeignPath:
+    """Frame delivery through a foreign python-can interface (a mixin of ``CanNetwork``)."""
+
+    __slots__ = ()
+    interface: str
+    channel: Any
+    _nodes: list[CanController]
+
+    def _send_and_drain(self, ctrl: CanController, msg: can.Message, t_us: int) -> None:
+        """Another python-can interface: put the frame on the sender's bus, drain the others."""
+        ctrl.bus.send(msg)
+        ts = t_us / US_PER_S
+        socket_like = self.interface != "virtual"
+        for c in self._nodes:
+            if c is ctrl:
+                continue
+            expected = socket_like and filters_accept(c._filt, msg.arbitration_id)
+            bus = c.bus
+            while True:
+                m = bus.recv(timeout=0)
+                if m is None and expected:
+                    m = bus.recv(timeout=0.05)   # kernel loopback may lag a little
+                if m is None:
+                    break
+                expected = False
+                m.timestamp = ts
+                m.channel = self.channel
+                c._on_frame(m)
+
