@@ -3,7 +3,8 @@
 A scenario is host code talking to the in-process twin through its pyserial URL, exactly as the
 MATLAB toolbox talked to the robot: boot (positions, period, PWM on: the Slaves calibrate), set the
 controllers, run the planner's motions with ``exe_traj``, let the robot settle. Meanwhile a
-:class:`Monitor` samples the plant's ground truth every 20 ms for the summary (SPEC.md section 6).
+:class:`humanoid_twin.monitor.Monitor` samples the plant's ground truth every 20 ms for the
+summary (docs/scenarios.md).
 """
 
 from __future__ import annotations
@@ -11,19 +12,19 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from humanoid_twin.faults import FaultInjector, FaultSpec
-from humanoid_twin.hardware import FOOT_OF_SCU, PWM_PERIOD_US
 from humanoid_twin.host import drivers
 from humanoid_twin.host.motion import exe_traj, power_on, send_gains
 from humanoid_twin.host.planners import GAINS, LEG_SCUS, empty_plan, flexao, inclinar, levantar_perna
 from humanoid_twin.host.timebase import sleep as host_sleep
 from humanoid_twin.master.supervisor import ESTOP, SAFE, SupervisorConfig
+from humanoid_twin.monitor import Monitor
 from humanoid_twin.protocol.rs232 import ControlType
 from humanoid_twin.twin import Twin
 
@@ -63,65 +64,6 @@ class RunOptions:
     # injected faults (humanoid_twin/faults.py) and the supervisor's thresholds (docs/supervisor.md)
     faults: tuple[FaultSpec, ...] = ()
     supervisor: SupervisorConfig | None = None
-
-
-@dataclass
-class Monitor:
-    """Samples the ground truth every 20 ms of virtual time for the run summary."""
-
-    twin: Twin
-    start_s: float = 0.0
-    fell: bool = False
-    trunk_tilt_max_deg: float = 0.0
-    cop_margin_min_mm: float = math.inf
-    _cop_err_sq: float = 0.0
-    _cop_err_n: int = 0
-    samples: int = 0
-    fell_at_s: float | None = None
-    tilt_deg: list[float] = field(default_factory=list)
-
-    def attach(self) -> None:
-        """Register on the twin's clock: the truth every 20 ms, and the CoP comparison of each
-        leg board right after its own tick (its force samples and the truth of the same instant)."""
-        self.twin.every(PWM_PERIOD_US, self.sample)
-        for scu, foot in FOOT_OF_SCU.items():
-            first = self.twin.slaves[scu].next_tick_us()
-            self.twin.every(PWM_PERIOD_US, lambda scu=scu, foot=foot: self.compare_cop(scu, foot), first)
-
-    def sample(self) -> None:
-        """One 20 ms sample of the truth (after the boards' ticks at this instant)."""
-        twin = self.twin
-        if twin.now_s < self.start_s:
-            return
-        gt = twin.plant.truth()
-        self.samples += 1
-        if gt.fell and not self.fell:
-            self.fell = True
-            self.fell_at_s = twin.now_s
-        self.trunk_tilt_max_deg = max(self.trunk_tilt_max_deg, gt.trunk_tilt_deg)
-        # -inf when nothing touches the platform (the robot is in the air or lying)
-        self.cop_margin_min_mm = min(self.cop_margin_min_mm, gt.cop_margin_mm)
-
-    def compare_cop(self, scu: int, foot: str) -> None:
-        """Firmware CoP of board ``scu`` (computed at its tick, just now) vs the contact CoP."""
-        twin = self.twin
-        slave = twin.slaves[scu]
-        if twin.now_s < self.start_s or not slave.cop_loaded or not slave.calibrated:
-            return
-        truth = twin.plant.foot_cop_mm(foot)
-        if truth is None:
-            return
-        dx = slave.cop_x - truth[0]
-        dy = slave.cop_y - truth[1]
-        self._cop_err_sq += dx * dx + dy * dy
-        self._cop_err_n += 1
-
-    @property
-    def cop_error_rms_mm(self) -> float | None:
-        """RMS distance between the firmware's and the true CoP of the loaded feet."""
-        if self._cop_err_n == 0:
-            return None
-        return math.sqrt(self._cop_err_sq / self._cop_err_n)
 
 
 @dataclass
