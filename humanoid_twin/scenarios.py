@@ -18,6 +18,7 @@ from typing import Any
 
 import numpy as np
 
+from humanoid_twin.controllers import load_host_controller, run_host_controller
 from humanoid_twin.faults import FaultInjector, FaultSpec
 from humanoid_twin.host import drivers
 from humanoid_twin.host.motion import exe_traj, power_on, send_gains
@@ -26,6 +27,7 @@ from humanoid_twin.host.timebase import sleep as host_sleep
 from humanoid_twin.master.supervisor import ESTOP, SAFE, SupervisorConfig
 from humanoid_twin.monitor import Monitor
 from humanoid_twin.protocol.rs232 import ControlType
+from humanoid_twin.slave.laws import install_laws
 from humanoid_twin.twin import Twin
 
 SCENARIOS = ("stand", "flexao", "inclinar", "levantar_perna")
@@ -64,6 +66,12 @@ class RunOptions:
     # injected faults (humanoid_twin/faults.py) and the supervisor's thresholds (docs/supervisor.md)
     faults: tuple[FaultSpec, ...] = ()
     supervisor: SupervisorConfig | None = None
+    # user controllers (humanoid_twin/controllers.py, docs/controllers.md): firmware laws per
+    # control type ((type name or number, law class or "module:Class"), ...), and a PC-side
+    # step(ctx) called every host_period_ms once the scenario's own host commands are sent
+    laws: tuple[tuple[int | str, Any], ...] = ()
+    host_controller: Callable[..., Any] | str | None = None
+    host_period_ms: float = 20.0
 
 
 @dataclass
@@ -147,6 +155,9 @@ def run(opts: RunOptions, on_progress: Callable[[float, float], None] | None = N
                 supervisor=opts.supervisor)
     sup = twin.master.supervisor
     injector = FaultInjector(twin, opts.faults, opts.seed)
+    if opts.laws:
+        install_laws(twin, opts.laws)
+    host_step = load_host_controller(opts.host_controller) if opts.host_controller is not None else None
     host_error: str | None = None
 
     def stopped() -> bool:
@@ -205,6 +216,17 @@ def run(opts: RunOptions, on_progress: Callable[[float, float], None] | None = N
             if not stopped() and not opts.faults:
                 raise ScenarioError(f"{opts.scenario}: {exc}") from exc
             host_error = f"{opts.scenario}: {exc}"
+        host_calls = None
+        if host_step is not None and host_error is None:
+            try:
+                host_calls = run_host_controller(H, host_step, monitor, duration, opts.host_period_ms,
+                                                 should_stop=stopped).calls
+            except drivers.CommError as exc:
+                if not stopped() and not opts.faults:
+                    raise ScenarioError(f"host controller: {exc}") from exc
+                host_error = f"host controller: {exc}"
+            except RuntimeError as exc:
+                raise ScenarioError(str(exc)) from exc
         rest = duration - twin.now_s
         if rest > 0:
             host_sleep(H, rest)
@@ -231,6 +253,11 @@ def run(opts: RunOptions, on_progress: Callable[[float, float], None] | None = N
         }
         if host_error is not None:
             summary["host_error"] = host_error
+        law_faults = [sl.servo.law_fault for sl in twin.slaves.values() if sl.servo.law_fault is not None]
+        if law_faults:
+            summary["law_faults"] = [f.as_dict() for f in law_faults]
+        if host_calls is not None:
+            summary["host_controller_calls"] = host_calls
         return summary
     finally:
         if recorder is not None:
