@@ -31,6 +31,8 @@ from humanoid_twin.slave.laws import install_laws
 from humanoid_twin.twin import Twin
 
 SCENARIOS = ("stand", "flexao", "inclinar", "levantar_perna")
+# Both feet stay down all along: ``--control reaction|balance`` keeps the leader/follower split.
+DOUBLE_SUPPORT_SCENARIOS = ("stand", "flexao", "inclinar")
 CONTROL_CHOICES = {"none": 0, "locomotion": 1, "reaction": 2, "balance": 3}
 BOOT_TIMEOUT_S = 5.0
 TILT_RATE_DEG_S = 1.0       # "the floor platform tilts slowly": 1 degree per second
@@ -82,13 +84,19 @@ class Plan:
     k: np.ndarray
     t: np.ndarray
 
-    def with_control(self, ctype: int) -> Plan:
+    def with_control(self, ctype: int, split: bool = False) -> Plan:
         """The same motions with every leg and hip board (SCU 1-4) on control type ``ctype``
-        (and that type's default gains): ``--control``."""
+        (and that type's default gains): ``--control``. ``split`` (the scenarios that keep both
+        feet down: stand, flexao, inclinar): for REACTION and BALANCE the two legs get the
+        leader/follower pair of :data:`STAND_GAINS` instead of the same law, which would make
+        them fight through the pelvis (docs/balance.md 2.2)."""
         k = self.k.copy()
         for row in range(len(LEG_SCUS)):
             k[row, :, :, :3] = np.asarray(GAINS[ControlType(ctype)])[:, None, :]
             k[row, :, :, 3] = ctype
+        if split and ctype in (ControlType.REACTION_CONTROL, ControlType.BALANCE_CONTROL):
+            for scu, gains in STAND_GAINS.items():
+                k[scu - 1, :, :, :3] = np.asarray(gains)[:, None, :]
         return Plan(self.pos_apply, k, self.t)
 
 
@@ -192,7 +200,8 @@ def run(opts: RunOptions, on_progress: Callable[[float, float], None] | None = N
         boot_s = twin.now_s
         the_plan = plan(opts.scenario, T=opts.T, motion=opts.motion, perna=opts.perna)
         if opts.control is not None:
-            the_plan = the_plan.with_control(CONTROL_CHOICES[opts.control])
+            the_plan = the_plan.with_control(CONTROL_CHOICES[opts.control],
+                                             split=opts.scenario in DOUBLE_SUPPORT_SCENARIOS)
         motion_s = 0.0 if opts.scenario == "stand" else float(np.sum(the_plan.t))
         tilt_s = abs(opts.tilt) / TILT_RATE_DEG_S
         duration = opts.duration
