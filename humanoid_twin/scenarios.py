@@ -3,7 +3,8 @@
 A scenario is host code talking to the in-process twin through its pyserial URL, exactly as the
 MATLAB toolbox talked to the robot: boot (positions, period, PWM on: the Slaves calibrate), set the
 controllers, run the planner's motions with ``exe_traj``, let the robot settle. Meanwhile a
-:class:`Monitor` samples the plant's ground truth every 20 ms for the summary (SPEC.md section 6).
+:class:`humanoid_twin.monitor.Monitor` samples the plant's ground truth every 20 ms for the
+summary (docs/scenarios.md).
 """
 
 from __future__ import annotations
@@ -11,20 +12,22 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from humanoid_twin.controllers import load_host_controller, run_host_controller
 from humanoid_twin.faults import FaultInjector, FaultSpec
-from humanoid_twin.hardware import FOOT_OF_SCU, PWM_PERIOD_US
 from humanoid_twin.host import drivers
 from humanoid_twin.host.motion import exe_traj, power_on, send_gains
 from humanoid_twin.host.planners import GAINS, LEG_SCUS, empty_plan, flexao, inclinar, levantar_perna
 from humanoid_twin.host.timebase import sleep as host_sleep
 from humanoid_twin.master.supervisor import ESTOP, SAFE, SupervisorConfig
+from humanoid_twin.monitor import Monitor
 from humanoid_twin.protocol.rs232 import ControlType
+from humanoid_twin.slave.laws import install_laws
 from humanoid_twin.twin import Twin
 
 SCENARIOS = ("stand", "flexao", "inclinar", "levantar_perna")
@@ -63,65 +66,12 @@ class RunOptions:
     # injected faults (humanoid_twin/faults.py) and the supervisor's thresholds (docs/supervisor.md)
     faults: tuple[FaultSpec, ...] = ()
     supervisor: SupervisorConfig | None = None
-
-
-@dataclass
-class Monitor:
-    """Samples the ground truth every 20 ms of virtual time for the run summary."""
-
-    twin: Twin
-    start_s: float = 0.0
-    fell: bool = False
-    trunk_tilt_max_deg: float = 0.0
-    cop_margin_min_mm: float = math.inf
-    _cop_err_sq: float = 0.0
-    _cop_err_n: int = 0
-    samples: int = 0
-    fell_at_s: float | None = None
-    tilt_deg: list[float] = field(default_factory=list)
-
-    def attach(self) -> None:
-        """Register on the twin's clock: the truth every 20 ms, and the CoP comparison of each
-        leg board right after its own tick (its force samples and the truth of the same instant)."""
-        self.twin.every(PWM_PERIOD_US, self.sample)
-        for scu, foot in FOOT_OF_SCU.items():
-            first = self.twin.slaves[scu].next_tick_us()
-            self.twin.every(PWM_PERIOD_US, lambda scu=scu, foot=foot: self.compare_cop(scu, foot), first)
-
-    def sample(self) -> None:
-        """One 20 ms sample of the truth (after the boards' ticks at this instant)."""
-        twin = self.twin
-        if twin.now_s < self.start_s:
-            return
-        gt = twin.plant.truth()
-        self.samples += 1
-        if gt.fell and not self.fell:
-            self.fell = True
-            self.fell_at_s = twin.now_s
-        self.trunk_tilt_max_deg = max(self.trunk_tilt_max_deg, gt.trunk_tilt_deg)
-        # -inf when nothing touches the platform (the robot is in the air or lying)
-        self.cop_margin_min_mm = min(self.cop_margin_min_mm, gt.cop_margin_mm)
-
-    def compare_cop(self, scu: int, foot: str) -> None:
-        """Firmware CoP of board ``scu`` (computed at its tick, just now) vs the contact CoP."""
-        twin = self.twin
-        slave = twin.slaves[scu]
-        if twin.now_s < self.start_s or not slave.cop_loaded or not slave.calibrated:
-            return
-        truth = twin.plant.foot_cop_mm(foot)
-        if truth is None:
-            return
-        dx = slave.cop_x - truth[0]
-        dy = slave.cop_y - truth[1]
-        self._cop_err_sq += dx * dx + dy * dy
-        self._cop_err_n += 1
-
-    @property
-    def cop_error_rms_mm(self) -> float | None:
-        """RMS distance between the firmware's and the true CoP of the loaded feet."""
-        if self._cop_err_n == 0:
-            return None
-        return math.sqrt(self._cop_err_sq / self._cop_err_n)
+    # user controllers (humanoid_twin/controllers.py, docs/controllers.md): firmware laws per
+    # control type ((type name or number, law class or "module:Class"), ...), and a PC-side
+    # step(ctx) called every host_period_ms once the scenario's own host commands are sent
+    laws: tuple[tuple[int | str, Any], ...] = ()
+    host_controller: Callable[..., Any] | str | None = None
+    host_period_ms: float = 20.0
 
 
 @dataclass
@@ -205,6 +155,9 @@ def run(opts: RunOptions, on_progress: Callable[[float, float], None] | None = N
                 supervisor=opts.supervisor)
     sup = twin.master.supervisor
     injector = FaultInjector(twin, opts.faults, opts.seed)
+    if opts.laws:
+        install_laws(twin, opts.laws)
+    host_step = load_host_controller(opts.host_controller) if opts.host_controller is not None else None
     host_error: str | None = None
 
     def stopped() -> bool:
@@ -263,6 +216,17 @@ def run(opts: RunOptions, on_progress: Callable[[float, float], None] | None = N
             if not stopped() and not opts.faults:
                 raise ScenarioError(f"{opts.scenario}: {exc}") from exc
             host_error = f"{opts.scenario}: {exc}"
+        host_calls = None
+        if host_step is not None and host_error is None:
+            try:
+                host_calls = run_host_controller(H, host_step, monitor, duration, opts.host_period_ms,
+                                                 should_stop=stopped).calls
+            except drivers.CommError as exc:
+                if not stopped() and not opts.faults:
+                    raise ScenarioError(f"host controller: {exc}") from exc
+                host_error = f"host controller: {exc}"
+            except RuntimeError as exc:
+                raise ScenarioError(str(exc)) from exc
         rest = duration - twin.now_s
         if rest > 0:
             host_sleep(H, rest)
@@ -289,6 +253,11 @@ def run(opts: RunOptions, on_progress: Callable[[float, float], None] | None = N
         }
         if host_error is not None:
             summary["host_error"] = host_error
+        law_faults = [sl.servo.law_fault for sl in twin.slaves.values() if sl.servo.law_fault is not None]
+        if law_faults:
+            summary["law_faults"] = [f.as_dict() for f in law_faults]
+        if host_calls is not None:
+            summary["host_controller_calls"] = host_calls
         return summary
     finally:
         if recorder is not None:

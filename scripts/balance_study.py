@@ -41,8 +41,9 @@ import numpy as np
 from humanoid_twin.host.motion import power_on, send_gains
 from humanoid_twin.host.planners import GAINS
 from humanoid_twin.host.timebase import sleep as host_sleep
+from humanoid_twin.monitor import Monitor
 from humanoid_twin.protocol.rs232 import ControlType
-from humanoid_twin.scenarios import SETTLE_S, STAND_KD, STAND_LEAD_KP, TILT_RATE_DEG_S, Monitor, tilt_profile
+from humanoid_twin.scenarios import SETTLE_S, STAND_KD, STAND_LEAD_KP, TILT_RATE_DEG_S, tilt_profile
 from humanoid_twin.sweep import Point, run_sweep
 from humanoid_twin.twin import Twin
 

@@ -26,8 +26,9 @@ from humanoid_twin.host.drivers import SupervisorRefused
 from humanoid_twin.host.motion import exe_traj, power_on
 from humanoid_twin.host.planners import GAINS, HOLD, L_LEG, levantar_perna
 from humanoid_twin.host.timebase import sleep as host_sleep
+from humanoid_twin.monitor import Monitor
 from humanoid_twin.protocol.rs232 import ControlType
-from humanoid_twin.scenarios import Monitor, RunOptions, run
+from humanoid_twin.scenarios import RunOptions, run
 from humanoid_twin.slave import servo as sv
 from humanoid_twin.slave.data import jacobianMatrix
 from humanoid_twin.slave.database import Global

@@ -127,6 +127,9 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
     _add_can_options(run)
     add_fault_options(run)
+    from humanoid_twin.controllers import add_controller_options
+
+    add_controller_options(run)     # --law, --host-controller, --host-period-ms (docs/controllers.md)
 
     serve = sub.add_parser(
         "serve",
@@ -190,7 +193,14 @@ def cmd_run(args: argparse.Namespace) -> int:
             raise _usage_error(f"--can-log {args.can_log}: python-can has no writer for "
                                f"{suffix or 'no suffix'!r} (use one of {' '.join(sorted(MESSAGE_WRITERS))})")
         _check_writable(args.can_log, "--can-log")
+    from humanoid_twin.controllers import ControllerError, controller_run_options
+
+    try:
+        controllers = controller_run_options(args)
+    except ControllerError as exc:
+        raise _usage_error(str(exc)) from None
     opts = RunOptions(
+        **controllers,
         scenario=args.scenario, duration=args.duration, T=args.T, motion=args.motion, perna=args.perna,
         out=out, can_log=args.can_log, control=args.control, tilt=args.tilt, seed=args.seed,
         progress=not args.no_progress, can_interface=args.can_interface, can_channel=args.can_channel,
@@ -221,6 +231,9 @@ def cmd_run(args: argparse.Namespace) -> int:
         summary["recording"] = str(out)
     if args.can_log is not None:
         summary["can_log"] = str(args.can_log)
+    for fault in summary.get("law_faults", ()):
+        sys.stderr.write(f"humanoid-twin: control law {fault['law']} stopped on SCU {fault['scu']} at "
+                         f"t={fault['t_s']} s: {fault['reason']}\n")
     _print_summary(summary, args.json)
     return EXIT_SUPERVISOR if summary.get("mode") in ("safe", "estop") else 0
 

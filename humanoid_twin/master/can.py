@@ -127,6 +127,7 @@ class MasterCan:
         else:
             s.current[:] = curr
             s.special[:] = special
+            s.sflags2 = data[0] & 0x07
             s.rx2 = True
             s.packets2 += 1
         s.last_rx_us = self.clock.now_us

@@ -61,7 +61,8 @@ class ScuSensors:
     """Sensor data of one SCU as last received over CAN (slide 32 ``struct_sensors`` entry)."""
 
     __slots__ = ("status", "pos", "vel", "current", "special", "rx1", "rx2",
-                 "packets1", "packets2", "rounds_answered", "rounds_missed", "last_rx_us", "sflags")
+                 "packets1", "packets2", "rounds_answered", "rounds_missed", "last_rx_us", "sflags",
+                 "sflags2")
 
     def __init__(self) -> None:
         self.status = 0                          # sensors 1 byte 8 (SPEC section 3)
@@ -77,6 +78,7 @@ class ScuSensors:
         self.rounds_missed = 0                   # complete rounds without both packets
         self.last_rx_us = -1                     # virtual time of the last sensor packet
         self.sflags = 0                          # Sensors 1 SFlags bits 2-0 (docs/supervisor.md)
+        self.sflags2 = 0                         # Sensors 2 SFlags bits 2-0 (bit 2: a law stopped)
 
 
 class MasterCounters:

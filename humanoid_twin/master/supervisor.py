@@ -28,7 +28,7 @@ from typing import TYPE_CHECKING, Any, NamedTuple
 from humanoid_twin.bus.network import BUS_OFF
 from humanoid_twin.clock import US_PER_S
 from humanoid_twin.hardware import FOOT_OF_SCU, FORCE_SENSOR_XY_MM, N_SCU, PWM_PERIOD_US
-from humanoid_twin.protocol.canframes import SFLAGS_CAN_STATE
+from humanoid_twin.protocol.canframes import SFLAGS2_LAW, SFLAGS_CAN_STATE
 from humanoid_twin.protocol.rs232 import SUPERVISOR_FAULTS, SUPERVISOR_MODES
 from humanoid_twin.slave.data import calcCoP
 
@@ -39,7 +39,7 @@ if TYPE_CHECKING:
 
 __all__ = [
     "STANDBY", "SELF_CHECK", "READY", "SAFE", "ESTOP", "MODE_NAMES",
-    "SILENT", "BUS_OFF_FAULT", "SLAVE_CAN", "OVER_TRAVEL", "DEADLINE", "BALANCE", "HOST_LINK",
+    "SILENT", "BUS_OFF_FAULT", "SLAVE_CAN", "OVER_TRAVEL", "DEADLINE", "BALANCE", "HOST_LINK", "LAW",
     "FAULT_NAMES", "Fault", "SupervisorConfig", "Supervisor",
 ]
 
@@ -59,6 +59,7 @@ OVER_TRAVEL = 4
 DEADLINE = 5
 BALANCE = 6
 HOST_LINK = 7
+LAW = 8                          # a Slave stopped a control law that failed (docs/controllers.md)
 FAULT_NAMES: dict[int, str] = SUPERVISOR_FAULTS
 
 ROUND_US = 8_000                 # one CAN schedule round (module PIC: 8 slaves x 1 ms)
@@ -242,6 +243,8 @@ class Supervisor:
                 continue
             if s.sflags & SFLAGS_CAN_STATE and now - s.last_rx_us <= ROUND_US:   # a fresh report
                 self._fault(SLAVE_CAN, k, now)
+            if s.sflags2 & SFLAGS2_LAW:
+                self._fault(LAW, k, now)
             if s.status & _STATUS_DEADLINE:
                 since = self._deadline_since[k]
                 if since is None:

@@ -44,6 +44,7 @@ __all__ = [
     "supervisor_flags",
     "SFLAGS_WATCHDOG",
     "SFLAGS_CAN_STATE",
+    "SFLAGS2_LAW",
     "sflags",
     "pack_actuation1",
     "unpack_actuation1",
@@ -327,6 +328,9 @@ def unpack_sensors1(data: bytes) -> tuple[int, int, tuple[int, int, int], tuple[
 # CAN error state (0 error-active, 1 error-passive, 2 bus-off since its last tick).
 SFLAGS_WATCHDOG = 0x04
 SFLAGS_CAN_STATE = 0x03
+# Sensors 2 SFlags bit 2 (zero in slide 20): a control law of the Slave was stopped (it raised or
+# returned bad values; the board holds those servos; docs/controllers.md, docs/supervisor.md).
+SFLAGS2_LAW = 0x04
 
 
 def supervisor_flags(data: bytes | bytearray) -> tuple[bool, int]:
@@ -335,10 +339,11 @@ def supervisor_flags(data: bytes | bytearray) -> tuple[bool, int]:
     return bool(sf & SFLAGS_WATCHDOG), sf & SFLAGS_CAN_STATE
 
 
-def pack_sensors2(src: int, curr: Sequence[int], data4: Sequence[int]) -> bytes:
+def pack_sensors2(src: int, curr: Sequence[int], data4: Sequence[int], law_stopped: bool = False) -> bytes:
     """Sensors 2 ``SFlags Curr1 Curr2 Curr3 Data1 Data2 Data3 Data4`` (slide 20).
 
-    ``curr``: 0..100 (:data:`CURRENT_MAX`); ``data4``: the 4 special sensors (force), bytes.
+    ``curr``: 0..100 (:data:`CURRENT_MAX`); ``data4``: the 4 special sensors (force), bytes;
+    ``law_stopped``: SFlags bit 2 (:data:`SFLAGS2_LAW`).
     """
     try:
         if not 0 <= src <= 15:
@@ -347,21 +352,22 @@ def pack_sensors2(src: int, curr: Sequence[int], data4: Sequence[int]) -> bytes:
         d1, d2, d3, d4 = data4
         if c1 > CURRENT_MAX or c2 > CURRENT_MAX or c3 > CURRENT_MAX:
             raise ValueError(f"current must be 0..{CURRENT_MAX}")
-        return _SEN2.pack((src << 4) | 0x08, c1, c2, c3, d1, d2, d3, d4)
+        return _SEN2.pack((src << 4) | 0x08 | (SFLAGS2_LAW if law_stopped else 0), c1, c2, c3, d1, d2, d3, d4)
     except (struct.error, TypeError, ValueError) as exc:
         raise _pack_error("Sensors2", exc, src=src, curr=curr, data4=data4) from None
 
 
 def unpack_sensors2(data: bytes) -> tuple[int, int, tuple[int, int, int], tuple[int, int, int, int]]:
     """Sensors 2 payload -> ``(src, index, (curr1, curr2, curr3), (data1, data2, data3, data4))``.
-    ``PayloadError`` if SFlags bits 2-0 are not zero, its index is not 1, or a current is over 100."""
+    ``PayloadError`` if SFlags bits 1-0 are not zero, its index is not 1, or a current is over 100
+    (bit 2, :data:`SFLAGS2_LAW`, is read with ``data[0] & SFLAGS2_LAW``)."""
     try:
         sf, c1, c2, c3, d1, d2, d3, d4 = _SEN2.unpack(data)
     except struct.error:
         raise _length_error("Sensors2", data) from None
     if c1 > CURRENT_MAX or c2 > CURRENT_MAX or c3 > CURRENT_MAX:
         raise PayloadError(f"Sensors2: current must be 0..{CURRENT_MAX}, got {(c1, c2, c3)}")
-    return _split_sflags(sf, 1, "Sensors2"), 1, (c1, c2, c3), (d1, d2, d3, d4)
+    return _split_sflags(sf & ~SFLAGS2_LAW, 1, "Sensors2"), 1, (c1, c2, c3), (d1, d2, d3, d4)
 
 
 # --- DBC -----------------------------------------------------------------------------------

@@ -102,7 +102,7 @@ SUPERVISOR_RESET = 2    # -> FB echo; a new self-check
 # The read answer's MODE and FAULTCODE bytes (docs/supervisor.md): wire number -> name.
 SUPERVISOR_MODES: dict[int, str] = {0: "standby", 1: "self_check", 2: "ready", 3: "safe", 4: "estop"}
 SUPERVISOR_FAULTS: dict[int, str] = {1: "silent", 2: "bus_off", 3: "slave_can", 4: "over_travel",
-                                     5: "deadline", 6: "balance", 7: "host_link"}
+                                     5: "deadline", 6: "balance", 7: "host_link", 8: "law"}
 
 
 class ControlType(IntEnum):

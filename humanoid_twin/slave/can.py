@@ -77,6 +77,7 @@ class SlaveCan:
         "bus_off_recoveries",
         "last_rx_us",
         "watchdog",
+        "law_stopped",
         "bus_off_seen",
         "on_stop",
     )
@@ -111,6 +112,7 @@ class SlaveCan:
         # (set by the main loop), a bus-off recovered this tick, and the category-0 stop the
         # board runs at once when an actuation packet switches its PWM off
         self.watchdog = False
+        self.law_stopped = False      # a control law was stopped (Sensors 2 SFlags bit 2)
         self.bus_off_seen = False
         self.on_stop: Any = None
         self.prepareSensorPackets()
@@ -233,5 +235,5 @@ class SlaveCan:
             flags,
         )
         self.payload[1] = pack_sensors2(
-            self.address, (sv[0].current, sv[1].current, sv[2].current), s.special
+            self.address, (sv[0].current, sv[1].current, sv[2].current), s.special, self.law_stopped
         )

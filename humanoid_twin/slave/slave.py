@@ -87,7 +87,8 @@ class Slave:
         self.sensors = self.db.sensors
         self.actuators = self.db.actuators
         self.traj = Trajectory()
-        self.servo = ServoControl(self.actuators, self.has_foot, LEG_SIGNS.get(address, (1, 1, 1)))
+        self.servo = ServoControl(self.actuators, self.has_foot, LEG_SIGNS.get(address, (1, 1, 1)),
+                                  scu=address, clock=clock)
         self.calib = Calibration()
         self.pic = Pic2(address, plant)
         self.can = SlaveCan(address, clock, self.db, self.phase_us)
@@ -225,7 +226,8 @@ class Slave:
                 if restarted >> i & 1:
                     servo.newTrajectory(i)
                 servo.servoRequest(i, traj.position[i])
-            servo.controller(pic.pos, self.cop_x, self.cop_y, self.cop_loaded, types)
+            servo.controller(pic.pos, self.cop_x, self.cop_y, self.cop_loaded, types, pic.force7)
+            can_.law_stopped = servo.law_stopped
             pic.servoActuation(servo.output)
 
         # sensor database (GLOBAL) and status bits
