@@ -205,6 +205,30 @@ class SerialLink:
         """Discard host bytes not yet started on the line; returns how many."""
         return self._cancel_unsent(self._to_dev)
 
+    def host_out_done_us(self) -> int:
+        """Virtual time at which the last byte written by the host reaches the device."""
+        return self._to_dev.last_end
+
+    def host_pending(self) -> bool:
+        """True while bytes are on their way in either direction (a request or its answer)."""
+        return bool(self._to_dev.queue or self._to_host.queue)
+
+    def unplug(self) -> tuple[int, int]:
+        """The cable is unplugged: every byte on its way, in both directions, is lost.
+
+        Returns ``(to_device, to_host)``, the numbers of bytes dropped. The next byte written
+        starts a new burst at ``clock.now_us``. (Per-byte clock events already scheduled find
+        the queue head not due and skip, see ``_deliver_to_device``.)
+        """
+        now = self.clock.now_us
+        dropped = []
+        for d in (self._to_dev, self._to_host):
+            dropped.append(len(d.queue))
+            d.queue.clear()
+            d.n = 0
+            d.burst_start = d.last_end = now
+        return dropped[0], dropped[1]
+
     def host_reset_input(self) -> int:
         """Discard the bytes already arrived at the host side; returns how many."""
         return len(self.host_read_available())
