@@ -48,6 +48,26 @@ def _positive(text: str) -> float:
     return value
 
 
+def _non_negative(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+    if not math.isfinite(value) or value < 0:
+        raise argparse.ArgumentTypeError(f"must be a number of seconds >= 0, got {text!r}")
+    return value
+
+
+def _tcp_port(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a port number: {text!r}") from None
+    if not 0 <= value <= 65535:
+        raise argparse.ArgumentTypeError(f"a TCP port is 0..65535, got {text!r}")
+    return value
+
+
 def _degrees(text: str) -> float:
     try:
         value = float(text)
@@ -119,8 +139,12 @@ def build_parser() -> argparse.ArgumentParser:
     )
     where = serve.add_mutually_exclusive_group()
     where.add_argument("--pty", action="store_true", help="serve on a pseudo-terminal (default)")
-    where.add_argument("--tcp", type=int, metavar="PORT", help="serve on TCP PORT (0: any free port)")
-    serve.add_argument("--host", default="127.0.0.1", help="address to bind with --tcp (default 127.0.0.1)")
+    where.add_argument("--tcp", type=_tcp_port, metavar="PORT", help="serve on TCP PORT (0: any free port)")
+    serve.add_argument("--host", default="127.0.0.1", help="address to bind with --tcp (default 127.0.0.1; "
+                       "::1 for IPv6 loopback)")
+    serve.add_argument("--idle-timeout", type=_non_negative, default=600.0, metavar="S",
+                       help="disconnect a TCP client that sent nothing for S wall seconds, so that a "
+                       "silent client cannot hold the port (default 600; 0: never)")
     serve.add_argument("--seed", type=int, default=0, help="random seed")
     serve.add_argument("--tilt", type=_degrees, default=0.0, help="tilt the platform slowly to DEG")
     _add_can_options(serve)
@@ -225,8 +249,10 @@ def _print_summary(summary: dict, as_json: bool) -> None:
 
 def cmd_serve(args: argparse.Namespace) -> int:
     """``humanoid-twin serve``: real-time pacing, the port on the first stdout line."""
-    from humanoid_twin.serve import serve
+    from humanoid_twin.serve import ServeError, serve
 
+    if args.tcp is not None:
+        _check_bind(args.host, args.tcp)
     stop = {"flag": False}
 
     def _stop(signum: int, frame: object) -> None:
@@ -236,10 +262,31 @@ def cmd_serve(args: argparse.Namespace) -> int:
     signal.signal(signal.SIGINT, _stop)
     from humanoid_twin.faults import supervisor_config
 
-    return serve(tcp_port=args.tcp, host=args.host, seed=args.seed, tilt=args.tilt,
-                 can_interface=args.can_interface, can_channel=args.can_channel,
-                 faults=tuple(args.fault), supervisor=supervisor_config(args),
-                 should_stop=lambda: stop["flag"])
+    try:
+        return serve(tcp_port=args.tcp, host=args.host, seed=args.seed, tilt=args.tilt,
+                     can_interface=args.can_interface, can_channel=args.can_channel,
+                     faults=tuple(args.fault), supervisor=supervisor_config(args),
+                     should_stop=lambda: stop["flag"], idle_timeout_s=args.idle_timeout or None)
+    except ServeError as exc:
+        raise _usage_error(str(exc)) from None
+
+
+def _check_bind(host: str, port: int) -> None:
+    """The TCP address is one this machine can listen on, before the twin boots (exit 2 otherwise)."""
+    import socket
+
+    try:
+        infos = socket.getaddrinfo(host, port, 0, socket.SOCK_STREAM, 0, socket.AI_PASSIVE)
+    except (socket.gaierror, UnicodeError) as exc:
+        raise _usage_error(f"--host {host}: not an address or a known host name ({exc})") from None
+    family, _, _, _, addr = infos[0]
+    try:
+        with socket.socket(family, socket.SOCK_STREAM) as s:
+            s.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+            s.bind(addr)
+            s.listen(1)
+    except OSError as exc:
+        raise _usage_error(f"--host {host} --tcp {port}: cannot listen: {exc.strerror or exc}") from None
 
 
 def cmd_view(args: argparse.Namespace) -> int:

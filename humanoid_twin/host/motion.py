@@ -18,7 +18,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from humanoid_twin.hardware import N_SCU, N_SERVOS
+from humanoid_twin.hardware import N_SERVOS
 from humanoid_twin.host import timebase
 from humanoid_twin.host.drivers import (
     STATUS_CALIB,
@@ -43,6 +43,7 @@ from humanoid_twin.protocol.rs232 import (
     PARAM_VELOCITY,
     ControlType,
 )
+from humanoid_twin.protocol.wire import N_SCU, SCUS, check_scu
 
 __all__ = [
     "ALL_SCUS",
@@ -57,7 +58,7 @@ __all__ = [
     "send_gains",
 ]
 
-ALL_SCUS: tuple[int, ...] = tuple(range(1, N_SCU + 1))
+ALL_SCUS: tuple[int, ...] = SCUS
 
 
 class TrajData(NamedTuple):
@@ -79,13 +80,7 @@ class TrajData(NamedTuple):
 def _scus(scus: Iterable[int]) -> tuple[int, ...]:
     out = []
     for s in scus:
-        try:
-            v = operator.index(s)
-        except TypeError:
-            raise ValueError(f"SCU addresses must be integers 1..{N_SCU}, got {s!r}") from None
-        if not 1 <= v <= N_SCU:
-            raise ValueError(f"SCU addresses must be 1..{N_SCU}, got {v}")
-        out.append(v)
+        out.append(check_scu(s, "SCU addresses"))
     if not out:
         raise ValueError("no SCU to drive")
     if len(set(out)) != len(out):

@@ -33,8 +33,9 @@ from typing import Any
 import numpy as np
 
 from humanoid_twin.clock import US_PER_S
-from humanoid_twin.hardware import N_SCU, N_SERVOS, PWM_PERIOD_US
+from humanoid_twin.hardware import N_SERVOS, PWM_PERIOD_US
 from humanoid_twin.protocol.rs232 import ControlType
+from humanoid_twin.protocol.wire import N_SCU
 
 __all__ = [
     "GAINS",

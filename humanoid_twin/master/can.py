@@ -148,6 +148,6 @@ class MasterCan:
 
     def error_status(self) -> tuple[int, int, int]:
         """``(ERRSTATE, TEC, REC)`` of the Master's controller for the CAN status response:
-        ERRSTATE 0 error-active, 1 error-passive, 2 bus-off; TEC/REC clipped to a byte."""
+        ERRSTATE a :class:`~humanoid_twin.protocol.wire.ErrorState` code; TEC/REC clipped to a byte."""
         ctl = self.drivers.controller
         return ctl.error_state_code, min(ctl.tec, 255), min(ctl.rec, 255)

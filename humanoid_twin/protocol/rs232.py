@@ -18,6 +18,16 @@ import operator
 from dataclasses import dataclass
 from enum import IntEnum
 
+from humanoid_twin.protocol.wire import (
+    MASTER_ADDRESS,
+    N_SCU,
+    POS_LIMIT_DEG,
+    ControlType,
+    from_s8,
+    s8,
+    scu_error,
+)
+
 __all__ = [
     "FRAME_LEN",
     "SOF",
@@ -105,20 +115,7 @@ SUPERVISOR_FAULTS: dict[int, str] = {1: "silent", 2: "bus_off", 3: "slave_can", 
                                      5: "deadline", 6: "balance", 7: "host_link", 8: "law"}
 
 
-class ControlType(IntEnum):
-    """Control type of a servo, the CONTROLON data bytes (seed 000 table 9)."""
-
-    NO_CONTROL = 0
-    LOCOMOTION_CONTROL = 1
-    REACTION_CONTROL = 2
-    BALANCE_CONTROL = 3
-
-
 TEST_MESSAGE = bytes([0xFA, 0xF9, 0xF8, 0xF7, 0xF6, 0xF5])  # usartSendTestMsg (seed 000 table 3)
-
-N_SCU = 8               # slaves 1..8 (seed 002 slide 19)
-POS_LIMIT_DEG = 90      # APPLY_JOINT POSITION: -90..90 (limitPosition, SPEC.md section 2)
-
 
 class FrameError(ValueError):
     """A 6-byte RS-232 frame that cannot be decoded: wrong length, first byte or BCC."""
@@ -168,17 +165,6 @@ def parse_opcode(opcode: int) -> tuple[int, int, int]:
     """OpCode byte -> ``(op, scu, param)``."""
     opcode = _byte("OpCode", opcode)
     return opcode >> 6, (opcode >> 2) & 0x0F, opcode & 0x03
-
-
-def s8(value: int) -> int:
-    """int8 -> byte (two's complement), e.g. -1 -> 0xFF. ``ValueError`` outside -128..127."""
-    return _int("int8 value", value, -128, 127, "int8") & 0xFF
-
-
-def from_s8(byte: int) -> int:
-    """byte -> int8 (two's complement), e.g. 0xFF -> -1. ``ValueError`` outside 0..255."""
-    byte = _byte("byte", byte)
-    return byte - 256 if byte & 0x80 else byte
 
 
 def encode_request(op: int, scu: int, param: int, d1: int = 0, d2: int = 0, d3: int = 0) -> bytes:
@@ -314,19 +300,20 @@ def invalid_reason(req: Request) -> str | None:
     op, scu, param = req.op, req.scu, req.param
     d1, d2, d3 = req.data
     if op == Op.MASTER:
-        if scu != 0:
+        if scu != MASTER_ADDRESS:
             return f"MASTER operation needs SCU 0, got SCU {scu}"
         if param > PARAM_SUPERVISOR:
             return f"MASTER parameter {param} is invalid (0 test, 1 CAN status, 2 supervisor)"
         if param == PARAM_SUPERVISOR and d1 > SUPERVISOR_RESET:
             return f"supervisor D1 must be 0 read, 1 emergency stop or 2 reset, got {d1}"
         return None
-    if not 1 <= scu <= N_SCU:
-        return f"SCU {scu} out of range 1..{N_SCU}"
+    reason = scu_error(scu)
+    if reason is not None:
+        return reason
     if op == Op.APPLY_JOINT:
         if param == PARAM_POSITION:
             for i, d in enumerate(req.data):
-                deg = d - 256 if d & 0x80 else d
+                deg = from_s8(d)
                 if not -POS_LIMIT_DEG <= deg <= POS_LIMIT_DEG:
                     return f"position D{i + 1} = {deg} deg out of -{POS_LIMIT_DEG}..{POS_LIMIT_DEG}"
             return None

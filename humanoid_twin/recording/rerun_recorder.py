@@ -39,7 +39,8 @@ os.environ.setdefault("RUST_LOG", "warn,re_log_encoding::rrd::file_sink=error")
 import rerun as rr  # noqa: E402
 
 from humanoid_twin.clock import US_PER_S
-from humanoid_twin.hardware import FOOT_OF_SCU, N_SCU, N_SPECIAL_SENSORS, PWM_PERIOD_US
+from humanoid_twin.hardware import FOOT_OF_SCU, N_SPECIAL_SENSORS, PWM_PERIOD_US
+from humanoid_twin.protocol.wire import N_SCU
 from humanoid_twin.recording.blueprint import default_blueprint
 from humanoid_twin.recording.columns import (
     Column,
