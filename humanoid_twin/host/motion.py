@@ -30,7 +30,7 @@ from humanoid_twin.host.drivers import (
     raise_for_error,
     readjoint,
 )
-from humanoid_twin.host.planners import GAINS, LEG_SCUS, MAX_PERIOD_S, TICK_S
+from humanoid_twin.host.planners import GAINS, LEG_SCUS, MAX_PERIOD_S, TICK_S, control_row
 from humanoid_twin.host.tables import RobotTables, adaptate, correct, default_tables, limit
 from humanoid_twin.protocol.rs232 import (
     PARAM_CONTROLON,
@@ -330,8 +330,7 @@ def controller(
     gains = _gains_array(GAINS[ctype] if k is None else k, N_SCU if per_scu else len(scus_t))
     for j, s in enumerate(scus_t):
         g = gains[s - 1] if per_scu else gains[j]
-        ks = np.concatenate([np.asarray(g), np.full((N_SERVOS, 1), int(ctype))], axis=1)
-        send_gains(H, s, ks)
+        send_gains(H, s, control_row(ctype, g))
 
 
 def controller_off(H: Any, *, scus: Iterable[int] = ALL_SCUS) -> None:
