@@ -129,10 +129,17 @@ class Plan:
     k: np.ndarray
     t: np.ndarray
 
-    def with_control(self, ctype: int) -> Plan:
+    def with_control(self, ctype: int, split: bool = False) -> Plan:
         """The same motions with every leg and hip board (SCU 1-4) on control type ``ctype``
-        (and that type's default gains): ``--control``."""
-        return Plan(self.pos_apply, with_control(self.k, ctype), self.t)
+        (and that type's default gains): ``--control``. ``split`` (the scenarios that keep both
+        feet down, ``Scenario.double_support``: stand, flexao, inclinar): for REACTION and BALANCE
+        the two legs get the leader/follower pair of :data:`STAND_GAINS` instead of the same law,
+        which would make them fight through the pelvis (docs/balance.md 2.2)."""
+        k = with_control(self.k, ctype)
+        if split and ctype in (ControlType.REACTION_CONTROL, ControlType.BALANCE_CONTROL):
+            for scu, gains in STAND_GAINS.items():
+                k[scu - 1] = control_row(ctype, gains)[:, None, :]
+        return Plan(self.pos_apply, k, self.t)
 
 
 Factory = Callable[[float | None, float | None, int], Plan]
@@ -142,11 +149,13 @@ Factory = Callable[[float | None, float | None, int], Plan]
 class Scenario:
     """One registered scenario: its name, its factory ``(T, motion, perna) -> Plan`` (``None``
     = the scenario's default), and whether it moves (``exe_traj`` the plan's motions) or holds
-    the boot posture with the plan's gains (:func:`hold`)."""
+    the boot posture with the plan's gains (:func:`hold`); ``double_support``: both feet stay
+    down all along (``--control reaction|balance`` keeps the leader/follower split)."""
 
     name: str
     factory: Factory
     moves: bool = True
+    double_support: bool = False
     doc: str = field(default="", compare=False)
 
     def plan(self, T: float | None = None, motion: float | None = None, perna: int = 1) -> Plan:
@@ -157,14 +166,14 @@ class Scenario:
 REGISTRY: dict[str, Scenario] = {}
 
 
-def scenario(name: str, *, moves: bool = True) -> Callable[[Factory], Factory]:
+def scenario(name: str, *, moves: bool = True, double_support: bool = False) -> Callable[[Factory], Factory]:
     """Register the decorated factory ``(T, motion, perna) -> Plan`` as scenario ``name``."""
 
     def register(factory: Factory) -> Factory:
         if name in REGISTRY:
             raise ValueError(f"scenario {name!r} is registered twice")
         doc = (factory.__doc__ or "").strip().splitlines()
-        REGISTRY[name] = Scenario(name, factory, moves, doc[0] if doc else "")
+        REGISTRY[name] = Scenario(name, factory, moves, double_support, doc[0] if doc else "")
         return factory
 
     return register
@@ -197,7 +206,7 @@ STAND_GAINS: dict[int, tuple[tuple[int, int, int], ...]] = {
 }
 
 
-@scenario("stand", moves=False)
+@scenario("stand", moves=False, double_support=True)
 def _stand(T: float | None, motion: float | None, perna: int) -> Plan:
     """vertical posture: leader/follower balance on the legs, LOCOMOTION on the hips"""
     pos, k, t = empty_plan(1)
@@ -207,13 +216,13 @@ def _stand(T: float | None, motion: float | None, perna: int) -> Plan:
     return Plan(pos, k, t)
 
 
-@scenario("flexao")
+@scenario("flexao", double_support=True)
 def _flexao(T: float | None, motion: float | None, perna: int) -> Plan:
     """both legs bend (table 22); motion = ankle bend, default 20 deg"""
     return Plan(*flexao(DEFAULT_T_S if T is None else T, 20.0 if motion is None else motion))
 
 
-@scenario("inclinar")
+@scenario("inclinar", double_support=True)
 def _inclinar(T: float | None, motion: float | None, perna: int) -> Plan:
     """both legs lean sideways (table 22); motion = foot lateral angle, default 10 deg"""
     return Plan(*inclinar(DEFAULT_T_S if T is None else T, 10.0 if motion is None else motion))
@@ -227,6 +236,7 @@ def _levantar_perna(T: float | None, motion: float | None, perna: int) -> Plan:
 
 
 SCENARIOS: tuple[str, ...] = tuple(REGISTRY)   # the CLI's choices, in registration order
+DOUBLE_SUPPORT_SCENARIOS: tuple[str, ...] = tuple(n for n, s in REGISTRY.items() if s.double_support)
 
 
 def plan(scenario: str, T: float | None = None, motion: float | None = None, perna: int = 1) -> Plan:
@@ -292,7 +302,7 @@ def run(opts: RunOptions, on_progress: Callable[[float, float], None] | None = N
         boot_s = twin.now_s
         the_plan = spec.plan(opts.T, opts.motion, opts.perna)
         if opts.control is not None:
-            the_plan = the_plan.with_control(CONTROL_CHOICES[opts.control])
+            the_plan = the_plan.with_control(CONTROL_CHOICES[opts.control], split=spec.double_support)
         motion_s = float(np.sum(the_plan.t)) if spec.moves else 0.0
         tilt_s = abs(opts.tilt) / TILT_RATE_DEG_S
         duration = opts.duration

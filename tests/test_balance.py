@@ -104,13 +104,25 @@ def test_without_control_the_robot_stands_small_tilts_only():
     assert failed(s), s
 
 
-def test_the_same_law_on_both_legs_in_double_support_falls():
+def test_the_same_law_on_both_legs_in_double_support_falls(monkeypatch):
     """The double-support finding (docs/firmware.md, docs/balance.md): both feet on the leader's
-    law fight through the pelvis; the leader/follower pair does not."""
+    law fight through the pelvis; the leader/follower pair does not. (The split switched off:
+    ``--control balance`` without it is the old override.)"""
+    raw = scenarios.Plan.with_control
+    monkeypatch.setattr(scenarios.Plan, "with_control", lambda self, ctype, split=False: raw(self, ctype))
     same = run(RunOptions("stand", tilt=8.0, control="balance", progress=False))
     assert same["fell"], same
+    monkeypatch.undo()
     pair = run(RunOptions("stand", tilt=8.0, progress=False))
     assert stood(pair, 30.0), pair
+
+
+@pytest.mark.parametrize("control", ["balance", "reaction"])
+def test_the_control_override_keeps_the_leader_follower_split_and_holds_20_deg(control):
+    """``stand --control balance|reaction --tilt 20``: the override keeps the split (issue 12)."""
+    s = run(RunOptions("stand", tilt=20.0, control=control, progress=False))
+    check_summary(s)
+    assert stood(s, 20.0), s
 
 
 # ---------------------------------------------------------------------------------------------
