@@ -14,7 +14,6 @@ Pure codecs: no I/O, no time. The plain functions work on ints and bytes; :class
 
 from __future__ import annotations
 
-import operator
 from dataclasses import dataclass
 from enum import IntEnum
 
@@ -24,6 +23,7 @@ from humanoid_twin.protocol.wire import (
     POS_LIMIT_DEG,
     ControlType,
     from_s8,
+    int_in_range,
     s8,
     scu_error,
 )
@@ -134,19 +134,8 @@ def bcc(data: bytes | bytearray | memoryview) -> int:
     return x
 
 
-def _int(name: str, value: int, lo: int, hi: int, what: str) -> int:
-    """``value`` as a plain int in lo..hi (numpy integers accepted), else a readable ValueError."""
-    try:
-        v = operator.index(value)
-    except TypeError:
-        raise ValueError(f"{name} must be an integer {lo}..{hi} ({what}), got {value!r}") from None
-    if not lo <= v <= hi:
-        raise ValueError(f"{name} must be {lo}..{hi} ({what}), got {v}")
-    return v
-
-
 def _byte(name: str, value: int) -> int:
-    return _int(name, value, 0, 255, "a byte")
+    return int_in_range(name, value, 0, 255, "a byte")
 
 
 def make_opcode(op: int, scu: int, param: int) -> int:
@@ -155,9 +144,9 @@ def make_opcode(op: int, scu: int, param: int) -> int:
     Raises ``ValueError`` when a field does not fit its bits (op 0..3, scu 0..15, param 0..3);
     whether the combination is meaningful is :func:`is_valid_request`'s business.
     """
-    op = _int("operation", op, 0, 3, "2 bits")
-    scu = _int("SCU address", scu, 0, 15, "4 bits")
-    param = _int("parameter", param, 0, 3, "2 bits")
+    op = int_in_range("operation", op, 0, 3, "2 bits")
+    scu = int_in_range("SCU address", scu, 0, 15, "4 bits")
+    param = int_in_range("parameter", param, 0, 3, "2 bits")
     return (op << 6) | (scu << 2) | param
 
 
@@ -197,9 +186,9 @@ class Request:
     def __post_init__(self) -> None:
         # Field ranges (the combination is is_valid_request's business); stored as plain ints.
         setattr_ = object.__setattr__
-        setattr_(self, "op", _int("operation", self.op, 0, 3, "2 bits"))
-        setattr_(self, "scu", _int("SCU address", self.scu, 0, 15, "4 bits"))
-        setattr_(self, "param", _int("parameter", self.param, 0, 3, "2 bits"))
+        setattr_(self, "op", int_in_range("operation", self.op, 0, 3, "2 bits"))
+        setattr_(self, "scu", int_in_range("SCU address", self.scu, 0, 15, "4 bits"))
+        setattr_(self, "param", int_in_range("parameter", self.param, 0, 3, "2 bits"))
         try:
             d1, d2, d3 = self.data
         except (TypeError, ValueError):
