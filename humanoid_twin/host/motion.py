@@ -223,9 +223,9 @@ def exe_traj(
         if kk.shape != (N_SCU, N_SERVOS, n_m, 4):
             raise ValueError(f"k must be {N_SCU} x {N_SERVOS} x {n_m} x 4, got shape {kk.shape}")
     if scus is None:
-        used = {s for s in range(1, N_SCU + 1) if np.any(pos[s - 1] != 0)}
+        used = {s for s in SCUS if np.any(pos[s - 1] != 0)}
         if kk is not None:
-            used |= {s for s in range(1, N_SCU + 1) if np.any(kk[s - 1] != 0)}
+            used |= {s for s in SCUS if np.any(kk[s - 1] != 0)}
         scus = sorted(used | set(LEG_SCUS))
     scus_t = _scus(scus)
     if np.any(~np.isfinite(pos[[s - 1 for s in scus_t]])):
