@@ -70,7 +70,6 @@ from humanoid_twin.protocol.rs232 import (
     SUPERVISOR_READ,
     SUPERVISOR_RESET,
     TEST_MESSAGE,
-    ControlType,
     FrameError,
     Op,
     decode_response,
@@ -88,6 +87,7 @@ from humanoid_twin.protocol.wire import (
     STATUS_DEADLINE,
     STATUS_ONE_FINISHED,
     STATUS_PWM,
+    ControlType,
     ErrorState,
 )
 

@@ -41,9 +41,8 @@ from humanoid_twin.protocol.rs232 import (
     PARAM_POSITION,
     PARAM_SPECIAL,
     PARAM_VELOCITY,
-    ControlType,
 )
-from humanoid_twin.protocol.wire import N_SCU, SCUS, check_scu
+from humanoid_twin.protocol.wire import N_SCU, SCUS, ControlType, check_scu
 
 __all__ = [
     "ALL_SCUS",

@@ -34,8 +34,7 @@ import numpy as np
 
 from humanoid_twin.clock import US_PER_S
 from humanoid_twin.hardware import N_SERVOS, PWM_PERIOD_US
-from humanoid_twin.protocol.rs232 import ControlType
-from humanoid_twin.protocol.wire import N_SCU
+from humanoid_twin.protocol.wire import N_SCU, ControlType
 
 __all__ = [
     "GAINS",

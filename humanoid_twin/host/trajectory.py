@@ -22,7 +22,8 @@ from humanoid_twin.host import timebase
 from humanoid_twin.host.drivers import ErrorCode, raise_for_error, readjoint
 from humanoid_twin.host.motion import _apply, _scus, period_ticks, send_gains
 from humanoid_twin.host.planners import TICK_S, control_row
-from humanoid_twin.protocol.rs232 import PARAM_CURRENT, PARAM_POSITION, PARAM_VELOCITY, ControlType
+from humanoid_twin.protocol.rs232 import PARAM_CURRENT, PARAM_POSITION, PARAM_VELOCITY
+from humanoid_twin.protocol.wire import ControlType
 
 __all__ = [
     "TEST_SCU",

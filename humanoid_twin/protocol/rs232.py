@@ -117,6 +117,9 @@ SUPERVISOR_FAULTS: dict[int, str] = {1: "silent", 2: "bus_off", 3: "slave_can", 
 
 TEST_MESSAGE = bytes([0xFA, 0xF9, 0xF8, 0xF7, 0xF6, 0xF5])  # usartSendTestMsg (seed 000 table 3)
 
+_MAX_CONTROL_TYPE = int(max(ControlType))   # seed 000 table 9: 0..3
+
+
 class FrameError(ValueError):
     """A 6-byte RS-232 frame that cannot be decoded: wrong length, first byte or BCC."""
 
@@ -320,8 +323,8 @@ def invalid_reason(req: Request) -> str | None:
     if op == Op.APPLY_CONTROL:
         if param == PARAM_CONTROLON:
             for i, d in enumerate(req.data):
-                if d > 3:
-                    return f"CONTROLON D{i + 1} = {d}: control type must be 0..3"
+                if d > _MAX_CONTROL_TYPE:
+                    return f"CONTROLON D{i + 1} = {d}: control type must be 0..{_MAX_CONTROL_TYPE}"
         return None
     return None  # READ_SENSORS: any parameter, data bytes ignored
 
