@@ -23,7 +23,7 @@ from humanoid_twin.hardware import PWM_PERIOD_US
 from humanoid_twin.master.master import Master
 from humanoid_twin.master.supervisor import SupervisorConfig
 from humanoid_twin.plant import Plant
-from humanoid_twin.protocol.wire import LINE_SETTINGS, N_SCU
+from humanoid_twin.protocol.wire import LINE_SETTINGS, N_SCU, SCUS
 from humanoid_twin.slave.slave import Slave
 
 _names = itertools.count()
@@ -51,10 +51,10 @@ class Twin:
         self.master = Master(self.clock, self.network, self.link, supervisor)
         # Slave PWM periods are not synchronised on the robot: each board starts its 20 ms
         # period at its own phase, drawn from the seed (docs/firmware.md).
-        self.phases_us: dict[int, int] = dict(zip(range(1, N_SCU + 1), _phases(seed), strict=True))
+        self.phases_us: dict[int, int] = dict(zip(SCUS, _phases(seed), strict=True))
         self.slaves: dict[int, Slave] = {
             scu: Slave(scu, self.clock, self.plant, self.network, phase_us=self.phases_us[scu])
-            for scu in range(1, N_SCU + 1)
+            for scu in SCUS
         }
         self.name = name or f"twin{next(_names)}"
         self.url = f"twin://{self.name}"

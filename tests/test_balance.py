@@ -23,12 +23,12 @@ import pytest
 from humanoid_twin import scenarios
 from humanoid_twin.hardware import FORCE_SENSOR_XY_MM
 from humanoid_twin.host.drivers import SupervisorRefused
-from humanoid_twin.host.motion import exe_traj, power_on
+from humanoid_twin.host.motion import exe_traj
 from humanoid_twin.host.planners import GAINS, HOLD, L_LEG, levantar_perna
 from humanoid_twin.host.timebase import sleep as host_sleep
 from humanoid_twin.monitor import Monitor
 from humanoid_twin.protocol.rs232 import ControlType
-from humanoid_twin.scenarios import RunOptions, run
+from humanoid_twin.scenarios import RunOptions, boot, run
 from humanoid_twin.slave import servo as sv
 from humanoid_twin.slave.data import jacobianMatrix
 from humanoid_twin.slave.database import Global
@@ -140,11 +140,10 @@ def _one_leg(pos: np.ndarray, k: np.ndarray, t: np.ndarray, seed: int) -> Verdic
     try:
         mon = Monitor(twin)
         mon.attach()
-        H = twin.open_port()
-        power_on(H, timeout=5.0)
-        boot = twin.now_s
+        H = boot(twin)
+        boot_s = twin.now_s
         T = float(t[0])
-        hold = (boot + HOLD * T + 0.2, boot + (HOLD + 1) * T)
+        hold = (boot_s + HOLD * T + 0.2, boot_s + (HOLD + 1) * T)
         obs = {"lifted_max_n": 0.0, "support_margin_min_mm": math.inf, "samples": 0}
 
         def sample() -> None:

@@ -70,13 +70,13 @@ from humanoid_twin.protocol.rs232 import (
     SUPERVISOR_READ,
     SUPERVISOR_RESET,
     TEST_MESSAGE,
-    ControlType,
     FrameError,
     Op,
     decode_response,
     encode_request,
     from_s8,
     hexdump,
+    parse_opcode,
     s8,
 )
 from humanoid_twin.protocol.wire import (
@@ -87,6 +87,7 @@ from humanoid_twin.protocol.wire import (
     STATUS_DEADLINE,
     STATUS_ONE_FINISHED,
     STATUS_PWM,
+    ControlType,
     ErrorState,
 )
 
@@ -666,7 +667,7 @@ def raise_for_error(result: tuple[Any, ...], what: str = "request", H: Any = Non
         return
     code = ErrorCode(err)
     rx = result.rx  # type: ignore[attr-defined]
-    is_apply = len(rx) == 6 and rx[1] >> 6 <= Op.APPLY_CONTROL
+    is_apply = len(rx) == 6 and parse_opcode(rx[1])[0] <= Op.APPLY_CONTROL
     if H is not None and code == ErrorCode.INVALID_REQUEST and is_apply:
         sup = readsupervisor(H)
         if sup.error == ErrorCode.OK and sup.mode in (3, 4):

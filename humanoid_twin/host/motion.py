@@ -30,7 +30,7 @@ from humanoid_twin.host.drivers import (
     raise_for_error,
     readjoint,
 )
-from humanoid_twin.host.planners import GAINS, LEG_SCUS, MAX_PERIOD_S, TICK_S
+from humanoid_twin.host.planners import GAINS, LEG_SCUS, MAX_PERIOD_S, TICK_S, control_row
 from humanoid_twin.host.tables import RobotTables, adaptate, correct, default_tables, limit
 from humanoid_twin.protocol.rs232 import (
     PARAM_CONTROLON,
@@ -41,9 +41,8 @@ from humanoid_twin.protocol.rs232 import (
     PARAM_POSITION,
     PARAM_SPECIAL,
     PARAM_VELOCITY,
-    ControlType,
 )
-from humanoid_twin.protocol.wire import N_SCU, SCUS, check_scu
+from humanoid_twin.protocol.wire import N_SCU, SCUS, ControlType, check_scu
 
 __all__ = [
     "ALL_SCUS",
@@ -223,9 +222,9 @@ def exe_traj(
         if kk.shape != (N_SCU, N_SERVOS, n_m, 4):
             raise ValueError(f"k must be {N_SCU} x {N_SERVOS} x {n_m} x 4, got shape {kk.shape}")
     if scus is None:
-        used = {s for s in range(1, N_SCU + 1) if np.any(pos[s - 1] != 0)}
+        used = {s for s in SCUS if np.any(pos[s - 1] != 0)}
         if kk is not None:
-            used |= {s for s in range(1, N_SCU + 1) if np.any(kk[s - 1] != 0)}
+            used |= {s for s in SCUS if np.any(kk[s - 1] != 0)}
         scus = sorted(used | set(LEG_SCUS))
     scus_t = _scus(scus)
     if np.any(~np.isfinite(pos[[s - 1 for s in scus_t]])):
@@ -330,8 +329,7 @@ def controller(
     gains = _gains_array(GAINS[ctype] if k is None else k, N_SCU if per_scu else len(scus_t))
     for j, s in enumerate(scus_t):
         g = gains[s - 1] if per_scu else gains[j]
-        ks = np.concatenate([np.asarray(g), np.full((N_SERVOS, 1), int(ctype))], axis=1)
-        send_gains(H, s, ks)
+        send_gains(H, s, control_row(ctype, g))
 
 
 def controller_off(H: Any, *, scus: Iterable[int] = ALL_SCUS) -> None:

@@ -30,7 +30,14 @@ from humanoid_twin.clock import US_PER_S
 from humanoid_twin.hardware import FOOT_OF_SCU, FORCE_SENSOR_XY_MM, PWM_PERIOD_US
 from humanoid_twin.protocol.canframes import SFLAGS2_LAW, SFLAGS_CAN_STATE
 from humanoid_twin.protocol.rs232 import SUPERVISOR_FAULTS, SUPERVISOR_MODES
-from humanoid_twin.protocol.wire import N_SCU, POS_LIMIT_DEG, STATUS_CALIB, STATUS_DEADLINE, STATUS_PWM
+from humanoid_twin.protocol.wire import (
+    MASTER_ADDRESS,
+    POS_LIMIT_DEG,
+    SCUS,
+    STATUS_CALIB,
+    STATUS_DEADLINE,
+    STATUS_PWM,
+)
 from humanoid_twin.slave.data import calcCoP
 
 if TYPE_CHECKING:
@@ -137,10 +144,10 @@ class Supervisor:
         self.refused = 0                      # APPLY requests answered FC by the supervisor
         self.last_host_us = 0
         self._seen: set[tuple[int, int]] = set()
-        self._packets = {k: 0 for k in range(1, N_SCU + 1)}
-        self._quiet_rounds = {k: 0 for k in range(0, N_SCU + 1)}
+        self._packets = {k: 0 for k in SCUS}
+        self._quiet_rounds = {k: 0 for k in (MASTER_ADDRESS, *SCUS)}
         self._master_sent = 0
-        self._deadline_since: dict[int, int | None] = {k: None for k in range(1, N_SCU + 1)}
+        self._deadline_since: dict[int, int | None] = {k: None for k in SCUS}
         self._balance_since: int | None = None
 
     # -- what the host sees -----------------------------------------------------------------------

@@ -43,7 +43,7 @@ from humanoid_twin.protocol.rs232 import (
     Op,
     Request,
 )
-from humanoid_twin.protocol.wire import ErrorState, from_s8
+from humanoid_twin.protocol.wire import ErrorState, from_s8, s8
 
 if TYPE_CHECKING:
     from humanoid_twin.bus.serial_link import SerialLink
@@ -261,7 +261,7 @@ class Usart:
                 sp = s.special
                 self._load_tx(rs232.data_response(sp[0], sp[1], sp[2], sp[3]))
                 return
-            self._load_tx(rs232.data_response(v[0] & 0xFF, v[1] & 0xFF, v[2] & 0xFF, s.status))
+            self._load_tx(rs232.data_response(s8(v[0]), s8(v[1]), s8(v[2]), s.status))
         else:
             assert op == _OP_MASTER
             if param == PARAM_TEST:

@@ -60,6 +60,8 @@ __all__ = [
     "supervisor_flags",
     "SFLAGS_WATCHDOG",
     "SFLAGS_CAN_STATE",
+    "SFLAGS_SUPERVISOR",
+    "ID_FIELDS",
     "SFLAGS2_LAW",
     "sflags",
     "pack_actuation1",
@@ -111,6 +113,9 @@ def split_id(arbitration_id: int) -> tuple[int, int, int, int]:
         raise ValueError(f"standard CAN id must be 0..0x7FF, got {arbitration_id!r}")
     return arbitration_id >> 7, (arbitration_id >> 3) & 0x0F, (arbitration_id >> 2) & 1, arbitration_id & 3
 
+
+# Every standard identifier's fields, ``ID_FIELDS[id] = split_id(id)`` (the receive paths' look-up).
+ID_FIELDS: tuple[tuple[int, int, int, int], ...] = tuple(split_id(i) for i in range(0x800))
 
 # Precomputed identifiers, scu 1..8 -> (packet index 0, packet index 1).
 ACTUATION_IDS: dict[int, tuple[int, int]] = {
@@ -343,7 +348,7 @@ def unpack_sensors1(data: bytes) -> tuple[int, int, tuple[int, int, int], tuple[
         raise _length_error("Sensors1", data) from None
     if sf & SFLAGS_CAN_STATE > ErrorState.BUS_OFF:
         raise PayloadError(f"Sensors1: SFlags 0x{sf:02X} carries CAN state 3 (0..2 only)")
-    return _split_sflags(sf & ~0x07, 0, "Sensors1"), 0, (p1, p2, p3), (v1, v2, v3), st
+    return _split_sflags(sf & ~SFLAGS_SUPERVISOR, 0, "Sensors1"), 0, (p1, p2, p3), (v1, v2, v3), st
 
 
 # Sensors 1 SFlags bits 2-0 (zero in seed 002 slide 20): the supervisor flags of the Slave
@@ -351,6 +356,7 @@ def unpack_sensors1(data: bytes) -> tuple[int, int, tuple[int, int, int], tuple[
 # CAN error state (0 error-active, 1 error-passive, 2 bus-off since its last tick).
 SFLAGS_WATCHDOG = 0x04
 SFLAGS_CAN_STATE = 0x03
+SFLAGS_SUPERVISOR = SFLAGS_WATCHDOG | SFLAGS_CAN_STATE   # bits 2-0 (Sensors 2: bit 2 = a law stopped)
 # Sensors 2 SFlags bit 2 (zero in slide 20): a control law of the Slave was stopped (it raised or
 # returned bad values; the board holds those servos; docs/controllers.md, docs/supervisor.md).
 SFLAGS2_LAW = 0x04

@@ -14,7 +14,6 @@ Pure codecs: no I/O, no time. The plain functions work on ints and bytes; :class
 
 from __future__ import annotations
 
-import operator
 from dataclasses import dataclass
 from enum import IntEnum
 
@@ -24,6 +23,7 @@ from humanoid_twin.protocol.wire import (
     POS_LIMIT_DEG,
     ControlType,
     from_s8,
+    int_in_range,
     s8,
     scu_error,
 )
@@ -117,6 +117,9 @@ SUPERVISOR_FAULTS: dict[int, str] = {1: "silent", 2: "bus_off", 3: "slave_can", 
 
 TEST_MESSAGE = bytes([0xFA, 0xF9, 0xF8, 0xF7, 0xF6, 0xF5])  # usartSendTestMsg (seed 000 table 3)
 
+_MAX_CONTROL_TYPE = int(max(ControlType))   # seed 000 table 9: 0..3
+
+
 class FrameError(ValueError):
     """A 6-byte RS-232 frame that cannot be decoded: wrong length, first byte or BCC."""
 
@@ -134,19 +137,8 @@ def bcc(data: bytes | bytearray | memoryview) -> int:
     return x
 
 
-def _int(name: str, value: int, lo: int, hi: int, what: str) -> int:
-    """``value`` as a plain int in lo..hi (numpy integers accepted), else a readable ValueError."""
-    try:
-        v = operator.index(value)
-    except TypeError:
-        raise ValueError(f"{name} must be an integer {lo}..{hi} ({what}), got {value!r}") from None
-    if not lo <= v <= hi:
-        raise ValueError(f"{name} must be {lo}..{hi} ({what}), got {v}")
-    return v
-
-
 def _byte(name: str, value: int) -> int:
-    return _int(name, value, 0, 255, "a byte")
+    return int_in_range(name, value, 0, 255, "a byte")
 
 
 def make_opcode(op: int, scu: int, param: int) -> int:
@@ -155,9 +147,9 @@ def make_opcode(op: int, scu: int, param: int) -> int:
     Raises ``ValueError`` when a field does not fit its bits (op 0..3, scu 0..15, param 0..3);
     whether the combination is meaningful is :func:`is_valid_request`'s business.
     """
-    op = _int("operation", op, 0, 3, "2 bits")
-    scu = _int("SCU address", scu, 0, 15, "4 bits")
-    param = _int("parameter", param, 0, 3, "2 bits")
+    op = int_in_range("operation", op, 0, 3, "2 bits")
+    scu = int_in_range("SCU address", scu, 0, 15, "4 bits")
+    param = int_in_range("parameter", param, 0, 3, "2 bits")
     return (op << 6) | (scu << 2) | param
 
 
@@ -197,9 +189,9 @@ class Request:
     def __post_init__(self) -> None:
         # Field ranges (the combination is is_valid_request's business); stored as plain ints.
         setattr_ = object.__setattr__
-        setattr_(self, "op", _int("operation", self.op, 0, 3, "2 bits"))
-        setattr_(self, "scu", _int("SCU address", self.scu, 0, 15, "4 bits"))
-        setattr_(self, "param", _int("parameter", self.param, 0, 3, "2 bits"))
+        setattr_(self, "op", int_in_range("operation", self.op, 0, 3, "2 bits"))
+        setattr_(self, "scu", int_in_range("SCU address", self.scu, 0, 15, "4 bits"))
+        setattr_(self, "param", int_in_range("parameter", self.param, 0, 3, "2 bits"))
         try:
             d1, d2, d3 = self.data
         except (TypeError, ValueError):
@@ -331,8 +323,8 @@ def invalid_reason(req: Request) -> str | None:
     if op == Op.APPLY_CONTROL:
         if param == PARAM_CONTROLON:
             for i, d in enumerate(req.data):
-                if d > 3:
-                    return f"CONTROLON D{i + 1} = {d}: control type must be 0..3"
+                if d > _MAX_CONTROL_TYPE:
+                    return f"CONTROLON D{i + 1} = {d}: control type must be 0..{_MAX_CONTROL_TYPE}"
         return None
     return None  # READ_SENSORS: any parameter, data bytes ignored
 

@@ -36,6 +36,7 @@ __all__ = [
     "STATUS_FINISHED",
     "s8",
     "from_s8",
+    "int_in_range",
     "BAUDRATE",
     "BYTESIZE",
     "PARITY",
@@ -136,7 +137,9 @@ STATUS_FINISHED = (0x01, 0x02, 0x04)   # bits 0, 1, 2: the motion of servo 1, 2,
 
 
 # --- int8 on the wire (two's complement bytes: positions, velocities, KP) --------------------
-def _index(name: str, value: Any, lo: int, hi: int, what: str) -> int:
+def int_in_range(name: str, value: Any, lo: int, hi: int, what: str) -> int:
+    """``value`` as a plain int in ``lo..hi`` (numpy integers accepted), else a readable
+    ``ValueError`` naming ``name`` and ``what`` it is (the codecs' one field check)."""
     try:
         v = operator.index(value)
     except TypeError:
@@ -148,12 +151,12 @@ def _index(name: str, value: Any, lo: int, hi: int, what: str) -> int:
 
 def s8(value: int) -> int:
     """int8 -> byte (two's complement), e.g. -1 -> 0xFF. ``ValueError`` outside -128..127."""
-    return _index("int8 value", value, -128, 127, "int8") & 0xFF
+    return int_in_range("int8 value", value, -128, 127, "int8") & 0xFF
 
 
 def from_s8(byte: int) -> int:
     """byte -> int8 (two's complement), e.g. 0xFF -> -1. ``ValueError`` outside 0..255."""
-    byte = _index("byte", byte, 0, 255, "a byte")
+    byte = int_in_range("byte", byte, 0, 255, "a byte")
     return byte - 256 if byte & 0x80 else byte
 
 
