@@ -145,6 +145,40 @@ class Plan:
 # Default planner arguments per scenario (``--T``, ``--motion``).
 DEFAULT_T_S = 1.0
 DEFAULT_MOTION_DEG = {"flexao": 20.0, "inclinar": 10.0, "levantar_perna": 40.0}
+
+
+@dataclass(frozen=True)
+class ScenarioInfo:
+    """What ``--help`` says about a scenario: one English line and its planner defaults (``T_s``
+    and ``motion_deg`` are None where the scenario has no such argument)."""
+
+    name: str
+    help: str
+    T_s: float | None = None
+    motion_deg: float | None = None
+    motion_means: str = ""
+
+    def defaults(self) -> str:
+        """``--T 1 s, --motion 20 deg (the ankle's bend)``, or why there are none."""
+        if self.T_s is None:
+            return "no planner: --T and --motion do not apply"
+        return f"--T {self.T_s:g} s, --motion {self.motion_deg:g} deg ({self.motion_means})"
+
+
+# The scenarios in English (the planners keep the manual's Portuguese names, seed 000 table 22).
+SCENARIO_INFO: dict[str, ScenarioInfo] = {
+    "stand": ScenarioInfo(
+        "stand", "stand still, balance control on the legs (add --tilt DEG to tilt the platform)"),
+    "flexao": ScenarioInfo(
+        "flexao", "squat: both legs bend (ankle, knee, hip), feet flat, trunk upright, and hold",
+        DEFAULT_T_S, DEFAULT_MOTION_DEG["flexao"], "the ankle's bend; the knee bends twice that"),
+    "inclinar": ScenarioInfo(
+        "inclinar", "lateral lean: both legs roll sideways, feet flat, trunk upright (+ = to the left)",
+        DEFAULT_T_S, DEFAULT_MOTION_DEG["inclinar"], "the foot's lateral joint"),
+    "levantar_perna": ScenarioInfo(
+        "levantar_perna", "lift a leg (--perna 1 right, 2 left, other: both bend): shift, raise, hold, lower",
+        DEFAULT_T_S, DEFAULT_MOTION_DEG["levantar_perna"], "the lifted leg's knee"),
+}
 # ``stand``: the vertical posture, both feet down, BALANCE_CONTROL on the leg boards and
 # LOCOMOTION_CONTROL on the hips. In double support the two legs must not run the same law
 # (they fight through the pelvis, docs/balance.md): the right leg leads (its foot front joint
@@ -197,8 +231,12 @@ def tilt_profile(
     return profile
 
 
-def run(opts: RunOptions, on_progress: Callable[[float, float], None] | None = None) -> dict[str, Any]:
-    """Run one scenario headless and return the SPEC.md section 6 summary."""
+def run(opts: RunOptions, on_progress: Callable[[float, float | None], None] | None = None
+        ) -> dict[str, Any]:
+    """Run one scenario headless and return the SPEC.md section 6 summary.
+
+    ``on_progress(t_s, end_s)`` is called every 0.1 s of virtual time: ``end_s`` is None during
+    the boot (its length is not known in advance), then the run's end time."""
     if opts.scenario not in SCENARIOS:
         raise ScenarioError(f"unknown scenario {opts.scenario!r} (choose from {', '.join(SCENARIOS)})")
     twin = Twin(seed=opts.seed, can_interface=opts.can_interface, can_channel=opts.can_channel,
@@ -229,6 +267,9 @@ def run(opts: RunOptions, on_progress: Callable[[float, float], None] | None = N
             injector.listeners.append(
                 lambda t, what, spec: rec_.log_event(t, f"injected {spec.text}: {what}", "WARN"))
         injector.install()
+        end: list[float | None] = [None]      # the run's end time, known once the boot is over
+        if on_progress is not None:
+            twin.every(100_000, lambda: on_progress(twin.now_s, end[0]))
         H = twin.open_port()
         try:
             power_on(H, timeout=BOOT_TIMEOUT_S)
@@ -247,8 +288,7 @@ def run(opts: RunOptions, on_progress: Callable[[float, float], None] | None = N
             duration = boot_s + max(motion_s, tilt_s) + SETTLE_S
         if opts.tilt:
             twin.plant.set_tilt_profile(tilt_profile(opts.tilt, boot_s))
-        if on_progress is not None:
-            twin.every(100_000, lambda: on_progress(twin.now_s, duration))
+        end[0] = duration
         try:
             if host_error is not None:
                 pass
@@ -313,5 +353,6 @@ def _finite(x: float) -> float | None:
     return round(max(x, NO_SUPPORT_MARGIN_MM), 3)
 
 
-__all__ = ["RunOptions", "Monitor", "Plan", "ScenarioError", "SCENARIOS", "CONTROL_CHOICES", "plan",
+__all__ = ["RunOptions", "Monitor", "Plan", "ScenarioError", "ScenarioInfo", "SCENARIOS", "SCENARIO_INFO",
+           "CONTROL_CHOICES", "plan",
            "run", "tilt_profile"]
