@@ -1,9 +1,17 @@
 """Scenarios a user runs headless: ``humanoid-twin run stand|flexao|inclinar|levantar_perna``.
 
 A scenario is host code talking to the in-process twin through its pyserial URL, exactly as the
-MATLAB toolbox talked to the robot: boot (positions, period, PWM on: the Slaves calibrate), set the
-controllers, run the planner's motions with ``exe_traj``, let the robot settle. Meanwhile a
-:class:`Monitor` samples the plant's ground truth every 20 ms for the summary (SPEC.md section 6).
+MATLAB toolbox talked to the robot: :func:`boot` (positions, period, PWM on: the Slaves
+calibrate), set the controllers, run the planner's motions with ``exe_traj``, let the robot
+settle. Meanwhile a :class:`humanoid_twin.monitor.Monitor` samples the plant's ground truth every
+20 ms for the summary (docs/scenarios.md).
+
+The scenarios are a registry (:data:`REGISTRY`, in the style of dm_control's suite): one scenario
+is one small factory below, decorated with :func:`scenario`, that returns its :class:`Plan` (the
+planner's ``pos_apply``, ``k``, ``t`` of seed 000 table 23) from ``T``, ``motion`` and ``perna``.
+Adding a scenario is adding one factory here: the CLI's choices, :func:`plan` and :func:`run`
+read the registry. :func:`boot` is the one boot sequence (``run``, ``scripts/balance_study.py``
+and the tests' ``booted_twin`` fixture use it).
 """
 
 from __future__ import annotations
@@ -17,18 +25,32 @@ from typing import Any
 
 import numpy as np
 
+from humanoid_twin.controllers import load_host_controller, run_host_controller
 from humanoid_twin.faults import FaultInjector, FaultSpec
-from humanoid_twin.hardware import FOOT_OF_SCU, PWM_PERIOD_US
 from humanoid_twin.host import drivers
 from humanoid_twin.host.motion import exe_traj, power_on, send_gains
-from humanoid_twin.host.planners import GAINS, LEG_SCUS, empty_plan, flexao, inclinar, levantar_perna
+from humanoid_twin.host.planners import (
+    LEG_SCUS,
+    control_row,
+    empty_plan,
+    flexao,
+    inclinar,
+    levantar_perna,
+    with_control,
+)
 from humanoid_twin.host.timebase import sleep as host_sleep
 from humanoid_twin.master.supervisor import ESTOP, SAFE, SupervisorConfig
-from humanoid_twin.protocol.rs232 import ControlType
+from humanoid_twin.monitor import Monitor
+from humanoid_twin.protocol.wire import ControlType
+from humanoid_twin.slave.laws import install_laws
 from humanoid_twin.twin import Twin
 
-SCENARIOS = ("stand", "flexao", "inclinar", "levantar_perna")
-CONTROL_CHOICES = {"none": 0, "locomotion": 1, "reaction": 2, "balance": 3}
+CONTROL_CHOICES: dict[str, int] = {
+    "none": ControlType.NO_CONTROL,
+    "locomotion": ControlType.LOCOMOTION_CONTROL,
+    "reaction": ControlType.REACTION_CONTROL,
+    "balance": ControlType.BALANCE_CONTROL,
+}
 BOOT_TIMEOUT_S = 5.0
 TILT_RATE_DEG_S = 1.0       # "the floor platform tilts slowly": 1 degree per second
 SETTLE_S = 2.0
@@ -36,6 +58,34 @@ SETTLE_S = 2.0
 
 class ScenarioError(RuntimeError):
     """A scenario could not run (the twin did not boot, a request failed ...)."""
+
+
+class BootError(ScenarioError):
+    """:func:`boot` failed; ``port`` is the host end of the link, open (the run may go on)."""
+
+    def __init__(self, message: str, port: Any) -> None:
+        super().__init__(message)
+        self.port = port
+
+
+def boot(twin: Twin, timeout: float = BOOT_TIMEOUT_S) -> Any:
+    """The one boot sequence: open the host end of the twin's RS-232 link and ``power_on`` every
+    board (positions 0, movement period, PWM on; the Slaves calibrate). Returns the open port.
+    Attach whatever observes the run (monitor, recorder, CAN log, faults) before calling it.
+    :class:`BootError` (with the port) if a request fails."""
+    H = twin.open_port()
+    try:
+        power_on(H, timeout=timeout)
+    except drivers.CommError as exc:
+        raise BootError(f"the twin did not boot: {exc}", H) from exc
+    return H
+
+
+def hold(H: Any, plan: Plan, scus: tuple[int, ...] = LEG_SCUS) -> None:
+    """A scenario without motions: send the gains and control types of the plan's first motion
+    to the boards ``scus`` (``applycontrol``) and let the firmware hold the posture."""
+    for scu in scus:
+        send_gains(H, scu, plan.k[scu - 1, :, 0, :])
 
 
 @dataclass
@@ -63,65 +113,12 @@ class RunOptions:
     # injected faults (humanoid_twin/faults.py) and the supervisor's thresholds (docs/supervisor.md)
     faults: tuple[FaultSpec, ...] = ()
     supervisor: SupervisorConfig | None = None
-
-
-@dataclass
-class Monitor:
-    """Samples the ground truth every 20 ms of virtual time for the run summary."""
-
-    twin: Twin
-    start_s: float = 0.0
-    fell: bool = False
-    trunk_tilt_max_deg: float = 0.0
-    cop_margin_min_mm: float = math.inf
-    _cop_err_sq: float = 0.0
-    _cop_err_n: int = 0
-    samples: int = 0
-    fell_at_s: float | None = None
-    tilt_deg: list[float] = field(default_factory=list)
-
-    def attach(self) -> None:
-        """Register on the twin's clock: the truth every 20 ms, and the CoP comparison of each
-        leg board right after its own tick (its force samples and the truth of the same instant)."""
-        self.twin.every(PWM_PERIOD_US, self.sample)
-        for scu, foot in FOOT_OF_SCU.items():
-            first = self.twin.slaves[scu].next_tick_us()
-            self.twin.every(PWM_PERIOD_US, lambda scu=scu, foot=foot: self.compare_cop(scu, foot), first)
-
-    def sample(self) -> None:
-        """One 20 ms sample of the truth (after the boards' ticks at this instant)."""
-        twin = self.twin
-        if twin.now_s < self.start_s:
-            return
-        gt = twin.plant.truth()
-        self.samples += 1
-        if gt.fell and not self.fell:
-            self.fell = True
-            self.fell_at_s = twin.now_s
-        self.trunk_tilt_max_deg = max(self.trunk_tilt_max_deg, gt.trunk_tilt_deg)
-        # -inf when nothing touches the platform (the robot is in the air or lying)
-        self.cop_margin_min_mm = min(self.cop_margin_min_mm, gt.cop_margin_mm)
-
-    def compare_cop(self, scu: int, foot: str) -> None:
-        """Firmware CoP of board ``scu`` (computed at its tick, just now) vs the contact CoP."""
-        twin = self.twin
-        slave = twin.slaves[scu]
-        if twin.now_s < self.start_s or not slave.cop_loaded or not slave.calibrated:
-            return
-        truth = twin.plant.foot_cop_mm(foot)
-        if truth is None:
-            return
-        dx = slave.cop_x - truth[0]
-        dy = slave.cop_y - truth[1]
-        self._cop_err_sq += dx * dx + dy * dy
-        self._cop_err_n += 1
-
-    @property
-    def cop_error_rms_mm(self) -> float | None:
-        """RMS distance between the firmware's and the true CoP of the loaded feet."""
-        if self._cop_err_n == 0:
-            return None
-        return math.sqrt(self._cop_err_sq / self._cop_err_n)
+    # user controllers (humanoid_twin/controllers.py, docs/controllers.md): firmware laws per
+    # control type ((type name or number, law class or "module:Class"), ...), and a PC-side
+    # step(ctx) called every host_period_ms once the scenario's own host commands are sent
+    laws: tuple[tuple[int | str, Any], ...] = ()
+    host_controller: Callable[..., Any] | str | None = None
+    host_period_ms: float = 20.0
 
 
 @dataclass
@@ -132,53 +129,67 @@ class Plan:
     k: np.ndarray
     t: np.ndarray
 
-    def with_control(self, ctype: int) -> Plan:
+    def with_control(self, ctype: int, split: bool = False) -> Plan:
         """The same motions with every leg and hip board (SCU 1-4) on control type ``ctype``
-        (and that type's default gains): ``--control``."""
-        k = self.k.copy()
-        for row in range(len(LEG_SCUS)):
-            k[row, :, :, :3] = np.asarray(GAINS[ControlType(ctype)])[:, None, :]
-            k[row, :, :, 3] = ctype
+        (and that type's default gains): ``--control``. ``split`` (the scenarios that keep both
+        feet down, ``Scenario.double_support``: stand, flexao, inclinar): for REACTION and BALANCE
+        the two legs get the leader/follower pair of :data:`STAND_GAINS` instead of the same law,
+        which would make them fight through the pelvis (docs/balance.md 2.2)."""
+        k = with_control(self.k, ctype)
+        if split and ctype in (ControlType.REACTION_CONTROL, ControlType.BALANCE_CONTROL):
+            for scu, gains in STAND_GAINS.items():
+                k[scu - 1] = control_row(ctype, gains)[:, None, :]
         return Plan(self.pos_apply, k, self.t)
 
 
-# Default planner arguments per scenario (``--T``, ``--motion``).
-DEFAULT_T_S = 1.0
-DEFAULT_MOTION_DEG = {"flexao": 20.0, "inclinar": 10.0, "levantar_perna": 40.0}
+Factory = Callable[[float | None, float | None, int], Plan]
 
 
 @dataclass(frozen=True)
-class ScenarioInfo:
-    """What ``--help`` says about a scenario: one English line and its planner defaults (``T_s``
-    and ``motion_deg`` are None where the scenario has no such argument)."""
+class Scenario:
+    """One registered scenario: its name, its factory ``(T, motion, perna) -> Plan`` (``None``
+    = the scenario's default), and whether it moves (``exe_traj`` the plan's motions) or holds
+    the boot posture with the plan's gains (:func:`hold`); ``double_support``: both feet stay
+    down all along (``--control reaction|balance`` keeps the leader/follower split)."""
 
     name: str
-    help: str
-    T_s: float | None = None
-    motion_deg: float | None = None
-    motion_means: str = ""
+    factory: Factory
+    moves: bool = True
+    double_support: bool = False
+    doc: str = field(default="", compare=False)
 
-    def defaults(self) -> str:
-        """``--T 1 s, --motion 20 deg (the ankle's bend)``, or why there are none."""
-        if self.T_s is None:
-            return "no planner: --T and --motion do not apply"
-        return f"--T {self.T_s:g} s, --motion {self.motion_deg:g} deg ({self.motion_means})"
+    def plan(self, T: float | None = None, motion: float | None = None, perna: int = 1) -> Plan:
+        """The scenario's plan with its defaults for the arguments left ``None``."""
+        return self.factory(T, motion, perna)
 
 
-# The scenarios in English (the planners keep the manual's Portuguese names, seed 000 table 22).
-SCENARIO_INFO: dict[str, ScenarioInfo] = {
-    "stand": ScenarioInfo(
-        "stand", "stand still, balance control on the legs (add --tilt DEG to tilt the platform)"),
-    "flexao": ScenarioInfo(
-        "flexao", "squat: both legs bend (ankle, knee, hip), feet flat, trunk upright, and hold",
-        DEFAULT_T_S, DEFAULT_MOTION_DEG["flexao"], "the ankle's bend; the knee bends twice that"),
-    "inclinar": ScenarioInfo(
-        "inclinar", "lateral lean: both legs roll sideways, feet flat, trunk upright (+ = to the left)",
-        DEFAULT_T_S, DEFAULT_MOTION_DEG["inclinar"], "the foot's lateral joint"),
-    "levantar_perna": ScenarioInfo(
-        "levantar_perna", "lift a leg (--perna 1 right, 2 left, other: both bend): shift, raise, hold, lower",
-        DEFAULT_T_S, DEFAULT_MOTION_DEG["levantar_perna"], "the lifted leg's knee"),
-}
+REGISTRY: dict[str, Scenario] = {}
+
+
+def scenario(name: str, *, moves: bool = True, double_support: bool = False) -> Callable[[Factory], Factory]:
+    """Register the decorated factory ``(T, motion, perna) -> Plan`` as scenario ``name``."""
+
+    def register(factory: Factory) -> Factory:
+        if name in REGISTRY:
+            raise ValueError(f"scenario {name!r} is registered twice")
+        doc = (factory.__doc__ or "").strip().splitlines()
+        REGISTRY[name] = Scenario(name, factory, moves, double_support, doc[0] if doc else "")
+        return factory
+
+    return register
+
+
+def get_scenario(name: str) -> Scenario:
+    """The registered scenario ``name``; :class:`ScenarioError` naming the choices otherwise."""
+    try:
+        return REGISTRY[name]
+    except KeyError:
+        raise ScenarioError(f"unknown scenario {name!r} (choose from {', '.join(REGISTRY)})") from None
+
+
+DEFAULT_T_S = 1.0           # the planners' default motion period (``--T``)
+# the planners' default angle (``--motion``, degrees) per scenario; ``--help`` shows them
+DEFAULT_MOTION_DEG = {"flexao": 20.0, "inclinar": 10.0, "levantar_perna": 40.0}
 # ``stand``: the vertical posture, both feet down, BALANCE_CONTROL on the leg boards and
 # LOCOMOTION_CONTROL on the hips. In double support the two legs must not run the same law
 # (they fight through the pelvis, docs/balance.md): the right leg leads (its foot front joint
@@ -192,29 +203,49 @@ STAND_CONTROL = {1: ControlType.BALANCE_CONTROL, 2: ControlType.BALANCE_CONTROL,
                  3: ControlType.LOCOMOTION_CONTROL, 4: ControlType.LOCOMOTION_CONTROL}
 STAND_LEAD_KP, STAND_FOLLOW_KP, STAND_KD = 1, -8, 2
 STAND_GAINS: dict[int, tuple[tuple[int, int, int], ...]] = {
-    1: ((0, 0, 0), (0, STAND_LEAD_KP & 0xFF, STAND_KD), (0, 0, 0)),
-    2: ((0, 0, 0), (0, STAND_FOLLOW_KP & 0xFF, STAND_KD), (0, 0, 0)),
+    1: ((0, 0, 0), (0, STAND_LEAD_KP, STAND_KD), (0, 0, 0)),
+    2: ((0, 0, 0), (0, STAND_FOLLOW_KP, STAND_KD), (0, 0, 0)),
 }
 
 
+@scenario("stand", moves=False, double_support=True)
+def _stand(T: float | None, motion: float | None, perna: int) -> Plan:
+    """stand still, balance control on the legs; --tilt DEG tilts the platform under it"""
+    pos, k, t = empty_plan(1)
+    for scu, ctype in STAND_CONTROL.items():
+        k[scu - 1, :, 0] = control_row(ctype, STAND_GAINS.get(scu))
+    t[0] = DEFAULT_T_S
+    return Plan(pos, k, t)
+
+
+@scenario("flexao", double_support=True)
+def _flexao(T: float | None, motion: float | None, perna: int) -> Plan:
+    """squat: both legs bend, feet flat, trunk upright (table 22); --motion = the ankle's bend"""
+    default = DEFAULT_MOTION_DEG["flexao"]
+    return Plan(*flexao(DEFAULT_T_S if T is None else T, default if motion is None else motion))
+
+
+@scenario("inclinar", double_support=True)
+def _inclinar(T: float | None, motion: float | None, perna: int) -> Plan:
+    """lateral lean: both legs roll sideways, feet flat (table 22); --motion = the foot lateral angle"""
+    default = DEFAULT_MOTION_DEG["inclinar"]
+    return Plan(*inclinar(DEFAULT_T_S if T is None else T, default if motion is None else motion))
+
+
+@scenario("levantar_perna")
+def _levantar_perna(T: float | None, motion: float | None, perna: int) -> Plan:
+    """lift a leg: --perna 1 the right, 2 the left (table 22); --motion = the lifted knee's angle"""
+    knee = DEFAULT_MOTION_DEG["levantar_perna"] if motion is None else motion
+    return Plan(*levantar_perna(DEFAULT_T_S if T is None else T, knee, perna))
+
+
+SCENARIOS: tuple[str, ...] = tuple(REGISTRY)   # the CLI's choices, in registration order
+DOUBLE_SUPPORT_SCENARIOS: tuple[str, ...] = tuple(n for n, s in REGISTRY.items() if s.double_support)
+
+
 def plan(scenario: str, T: float | None = None, motion: float | None = None, perna: int = 1) -> Plan:
-    """The planner call of a scenario with its defaults."""
-    if scenario not in SCENARIOS:
-        raise ScenarioError(f"unknown scenario {scenario!r} (choose from {', '.join(SCENARIOS)})")
-    if scenario == "stand":
-        pos, k, t = empty_plan(1)
-        for scu, ctype in STAND_CONTROL.items():
-            k[scu - 1, :, 0, :3] = STAND_GAINS.get(scu, GAINS[ctype])
-            k[scu - 1, :, 0, 3] = int(ctype)
-        t[0] = DEFAULT_T_S
-        return Plan(pos, k, t)
-    period = DEFAULT_T_S if T is None else T
-    amount = DEFAULT_MOTION_DEG[scenario] if motion is None else motion
-    if scenario == "flexao":
-        return Plan(*flexao(period, amount))
-    if scenario == "inclinar":
-        return Plan(*inclinar(period, amount))
-    return Plan(*levantar_perna(period, amount, perna))
+    """The plan of the registered scenario ``scenario`` with its defaults."""
+    return get_scenario(scenario).plan(T, motion, perna)
 
 
 def tilt_profile(
@@ -237,12 +268,14 @@ def run(opts: RunOptions, on_progress: Callable[[float, float | None], None] | N
 
     ``on_progress(t_s, end_s)`` is called every 0.1 s of virtual time: ``end_s`` is None during
     the boot (its length is not known in advance), then the run's end time."""
-    if opts.scenario not in SCENARIOS:
-        raise ScenarioError(f"unknown scenario {opts.scenario!r} (choose from {', '.join(SCENARIOS)})")
+    spec = get_scenario(opts.scenario)
     twin = Twin(seed=opts.seed, can_interface=opts.can_interface, can_channel=opts.can_channel,
                 supervisor=opts.supervisor)
     sup = twin.master.supervisor
     injector = FaultInjector(twin, opts.faults, opts.seed)
+    if opts.laws:
+        install_laws(twin, opts.laws)
+    host_step = load_host_controller(opts.host_controller) if opts.host_controller is not None else None
     host_error: str | None = None
 
     def stopped() -> bool:
@@ -270,18 +303,18 @@ def run(opts: RunOptions, on_progress: Callable[[float, float | None], None] | N
         end: list[float | None] = [None]      # the run's end time, known once the boot is over
         if on_progress is not None:
             twin.every(100_000, lambda: on_progress(twin.now_s, end[0]))
-        H = twin.open_port()
         try:
-            power_on(H, timeout=BOOT_TIMEOUT_S)
-        except drivers.CommError as exc:
+            H = boot(twin)
+        except BootError as exc:
             if not stopped() and not opts.faults:
-                raise ScenarioError(f"the twin did not boot: {exc}") from exc
-            host_error = f"boot: {exc}"     # the supervisor stopped the boot: the run goes on
+                raise
+            H = exc.port
+            host_error = f"boot: {exc.__cause__}"     # the supervisor stopped the boot: the run goes on
         boot_s = twin.now_s
-        the_plan = plan(opts.scenario, T=opts.T, motion=opts.motion, perna=opts.perna)
+        the_plan = spec.plan(opts.T, opts.motion, opts.perna)
         if opts.control is not None:
-            the_plan = the_plan.with_control(CONTROL_CHOICES[opts.control])
-        motion_s = 0.0 if opts.scenario == "stand" else float(np.sum(the_plan.t))
+            the_plan = the_plan.with_control(CONTROL_CHOICES[opts.control], split=spec.double_support)
+        motion_s = float(np.sum(the_plan.t)) if spec.moves else 0.0
         tilt_s = abs(opts.tilt) / TILT_RATE_DEG_S
         duration = opts.duration
         if duration is None:
@@ -292,9 +325,8 @@ def run(opts: RunOptions, on_progress: Callable[[float, float | None], None] | N
         try:
             if host_error is not None:
                 pass
-            elif opts.scenario == "stand":
-                for scu in LEG_SCUS:
-                    send_gains(H, scu, the_plan.k[scu - 1, :, 0, :])
+            elif not spec.moves:
+                hold(H, the_plan)
             elif duration > twin.now_s:
                 exe_traj(H, the_plan.t, the_plan.pos_apply, 0.0, k=the_plan.k)
         except drivers.CommError as exc:
@@ -303,6 +335,17 @@ def run(opts: RunOptions, on_progress: Callable[[float, float | None], None] | N
             if not stopped() and not opts.faults:
                 raise ScenarioError(f"{opts.scenario}: {exc}") from exc
             host_error = f"{opts.scenario}: {exc}"
+        host_calls = None
+        if host_step is not None and host_error is None:
+            try:
+                host_calls = run_host_controller(H, host_step, monitor, duration, opts.host_period_ms,
+                                                 should_stop=stopped).calls
+            except drivers.CommError as exc:
+                if not stopped() and not opts.faults:
+                    raise ScenarioError(f"host controller: {exc}") from exc
+                host_error = f"host controller: {exc}"
+            except RuntimeError as exc:
+                raise ScenarioError(str(exc)) from exc
         rest = duration - twin.now_s
         if rest > 0:
             host_sleep(H, rest)
@@ -329,6 +372,11 @@ def run(opts: RunOptions, on_progress: Callable[[float, float | None], None] | N
         }
         if host_error is not None:
             summary["host_error"] = host_error
+        law_faults = [sl.servo.law_fault for sl in twin.slaves.values() if sl.servo.law_fault is not None]
+        if law_faults:
+            summary["law_faults"] = [f.as_dict() for f in law_faults]
+        if host_calls is not None:
+            summary["host_controller_calls"] = host_calls
         return summary
     finally:
         if recorder is not None:
@@ -353,6 +401,6 @@ def _finite(x: float) -> float | None:
     return round(max(x, NO_SUPPORT_MARGIN_MM), 3)
 
 
-__all__ = ["RunOptions", "Monitor", "Plan", "ScenarioError", "ScenarioInfo", "SCENARIOS", "SCENARIO_INFO",
-           "CONTROL_CHOICES", "plan",
+__all__ = ["RunOptions", "Monitor", "Plan", "Scenario", "REGISTRY", "scenario", "get_scenario", "boot",
+           "hold", "BootError", "ScenarioError", "SCENARIOS", "CONTROL_CHOICES", "plan",
            "run", "tilt_profile"]

@@ -449,7 +449,7 @@ def test_payload_byte_layouts() -> None:
         (lambda: cf.unpack_sensors1(bytes.fromhex("23 00 00 00 00 00 00 00")), "CAN state 3"),
         (lambda: cf.unpack_sensors1(bytes.fromhex("28 00 00 00 00 00 00 00")), "index 1, expected 0"),
         (lambda: cf.unpack_sensors2(bytes.fromhex("20 00 00 00 00 00 00 00")), "index 0, expected 1"),
-        (lambda: cf.unpack_sensors2(bytes.fromhex("2C 00 00 00 00 00 00 00")), "bits 2-0"),
+        (lambda: cf.unpack_sensors2(bytes.fromhex("29 00 00 00 00 00 00 00")), "bits 2-0"),
         (lambda: cf.unpack_sensors2(bytes.fromhex("28 00 65 00 00 00 00 00")), "0..100"),
     ],
 )

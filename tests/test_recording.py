@@ -14,8 +14,9 @@ import can
 import numpy as np
 import pytest
 
-from humanoid_twin.hardware import N_SCU, N_SERVOS
+from humanoid_twin.hardware import N_SERVOS
 from humanoid_twin.protocol import canframes, rs232
+from humanoid_twin.protocol.wire import N_SCU
 from humanoid_twin.recording import (
     CanLog,
     CanLogError,

@@ -301,9 +301,9 @@ def test_incremental_pid_against_hand_computed_steps():
         u = u + Kp * (e - e1) + Ki * e + Kd * (e - 2 * e1 + e2)
         e2, e1 = e1, e
         sc.controller([m, 0, 0], 0, 0, False, types)
-        assert sc.u16[0] == round(16 * u)
+        assert sc.law(LOCOMOTION_CONTROL).u16[0] == round(16 * u)
         assert sc.output[0] == math.floor(u + 0.5)
-    assert sc.e1[0] == 0 and sc.e2[0] == -2
+    assert sc.law(LOCOMOTION_CONTROL).e1[0] == 0 and sc.law(LOCOMOTION_CONTROL).e2[0] == -2
 
 
 def test_pid_with_integral_gain_converges_on_a_lagging_servo():

@@ -18,8 +18,9 @@ from collections import deque
 from collections.abc import Callable
 
 from humanoid_twin.clock import US_PER_S, Clock
+from humanoid_twin.protocol.wire import BAUDRATE, BYTESIZE, PARITY, STOPBITS
 
-DEFAULT_BAUDRATE = 115200
+DEFAULT_BAUDRATE = BAUDRATE
 _PARITY_BITS = {"N": 0, "E": 1, "O": 1, "M": 1, "S": 1}
 
 
@@ -51,8 +52,8 @@ class SerialLink:
     :param bytesize, parity, stopbits: the character frame (seed 002 slide 7: 8, "E", 1).
     """
 
-    def __init__(self, clock: Clock, baudrate: int = DEFAULT_BAUDRATE, *, bytesize: int = 8,
-                 parity: str = "E", stopbits: int = 1) -> None:
+    def __init__(self, clock: Clock, baudrate: int = DEFAULT_BAUDRATE, *, bytesize: int = BYTESIZE,
+                 parity: str = PARITY, stopbits: int = STOPBITS) -> None:
         if not isinstance(baudrate, int) or baudrate <= 0:
             raise ValueError(f"baudrate must be a positive int, got {baudrate!r}")
         if bytesize not in (5, 6, 7, 8):
@@ -203,6 +204,30 @@ class SerialLink:
     def host_reset_output(self) -> int:
         """Discard host bytes not yet started on the line; returns how many."""
         return self._cancel_unsent(self._to_dev)
+
+    def host_out_done_us(self) -> int:
+        """Virtual time at which the last byte written by the host reaches the device."""
+        return self._to_dev.last_end
+
+    def host_pending(self) -> bool:
+        """True while bytes are on their way in either direction (a request or its answer)."""
+        return bool(self._to_dev.queue or self._to_host.queue)
+
+    def unplug(self) -> tuple[int, int]:
+        """The cable is unplugged: every byte on its way, in both directions, is lost.
+
+        Returns ``(to_device, to_host)``, the numbers of bytes dropped. The next byte written
+        starts a new burst at ``clock.now_us``. (Per-byte clock events already scheduled find
+        the queue head not due and skip, see ``_deliver_to_device``.)
+        """
+        now = self.clock.now_us
+        dropped = []
+        for d in (self._to_dev, self._to_host):
+            dropped.append(len(d.queue))
+            d.queue.clear()
+            d.n = 0
+            d.burst_start = d.last_end = now
+        return dropped[0], dropped[1]
 
     def host_reset_input(self) -> int:
         """Discard the bytes already arrived at the host side; returns how many."""

@@ -48,6 +48,26 @@ def _positive(text: str) -> float:
     return value
 
 
+def _non_negative(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+    if not math.isfinite(value) or value < 0:
+        raise argparse.ArgumentTypeError(f"must be a number of seconds >= 0, got {text!r}")
+    return value
+
+
+def _tcp_port(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a port number: {text!r}") from None
+    if not 0 <= value <= 65535:
+        raise argparse.ArgumentTypeError(f"a TCP port is 0..65535, got {text!r}")
+    return value
+
+
 def _degrees(text: str) -> float:
     try:
         value = float(text)
@@ -86,14 +106,16 @@ def _version() -> str:
 
 
 def _scenario_lines() -> str:
-    """One line per scenario, then its defaults (from the scenario registry)."""
-    from humanoid_twin.scenarios import SCENARIO_INFO
+    """One line per registered scenario (its docstring's first line), then its defaults."""
+    from humanoid_twin.scenarios import DEFAULT_MOTION_DEG, DEFAULT_T_S, REGISTRY
 
-    width = max(len(name) for name in SCENARIO_INFO)
+    width = max(len(name) for name in REGISTRY)
     lines = ["scenarios:"]
-    for info in SCENARIO_INFO.values():
-        lines.append(f"  {info.name:<{width}}  {info.help}")
-        lines.append(f"  {'':<{width}}  defaults: {info.defaults()}")
+    for name, spec in REGISTRY.items():
+        lines.append(f"  {name:<{width}}  {spec.doc}")
+        if name in DEFAULT_MOTION_DEG:
+            lines.append(f"  {'':<{width}}  defaults: --T {DEFAULT_T_S:g} s, --motion "
+                         f"{DEFAULT_MOTION_DEG[name]:g} deg")
     return "\n".join(lines)
 
 
@@ -107,7 +129,7 @@ def _add_can_options(p: argparse.ArgumentParser) -> None:
 def build_parser() -> argparse.ArgumentParser:
     """The CLI's argument parser (exposed for the docs and the tests)."""
     from humanoid_twin.faults import add_fault_options
-    from humanoid_twin.scenarios import CONTROL_CHOICES, SCENARIO_INFO, SCENARIOS
+    from humanoid_twin.scenarios import CONTROL_CHOICES, DEFAULT_MOTION_DEG, DEFAULT_T_S, SCENARIOS
 
     raw = argparse.RawDescriptionHelpFormatter
     parser = _Parser(
@@ -131,17 +153,14 @@ def build_parser() -> argparse.ArgumentParser:
                      help=f"one of: {', '.join(SCENARIOS)} (see above)")
     run.add_argument("--duration", type=_positive, metavar="S", help="simulated seconds (default: boot "
                      "~2.7 s + the motion + 2 s of settling)")
-    periods = {i.T_s for i in SCENARIO_INFO.values() if i.T_s is not None}
-    per = (f"{periods.pop():g} s" if len(periods) == 1 else
-           "; ".join(f"{i.name} {i.T_s:g} s" for i in SCENARIO_INFO.values() if i.T_s is not None))
-    run.add_argument("--T", type=_positive, metavar="S", help=f"the planner's movement period in "
-                     f"seconds (seed 000 table 22; levantar_perna: each of its 5 steps). Default: {per}")
-    per = "; ".join(f"{i.name} {i.motion_deg:g} ({i.motion_means})" for i in SCENARIO_INFO.values()
-                    if i.motion_deg is not None)
-    run.add_argument("--motion", type=_degrees, metavar="DEG", help=f"the planner's angle in degrees. "
-                     f"Default: {per}")
-    run.add_argument("--perna", type=int, default=1, metavar="N", help="levantar_perna: the leg to lift, "
-                     "1 right (default), 2 left, any other value: both legs bend (seed 000 table 22)")
+    run.add_argument("--T", type=_positive, metavar="S", help="the planner's movement period in "
+                     "seconds (seed 000 table 22; levantar_perna: each of its 5 steps). "
+                     f"Default: {DEFAULT_T_S:g} s")
+    per = ", ".join(f"{name} {deg:g}" for name, deg in DEFAULT_MOTION_DEG.items())
+    run.add_argument("--motion", type=_degrees, metavar="DEG", help="the planner's angle in degrees "
+                     f"(what it bends: see the scenarios above). Default: {per}")
+    run.add_argument("--perna", type=int, default=1, choices=(1, 2), help="levantar_perna: the leg to "
+                     "lift, 1 the right (default), 2 the left (seed 000 table 22)")
     run.add_argument("--out", type=Path, help="rerun recording to write (default: SCENARIO.rrd)")
     run.add_argument("--no-record", action="store_true", help="do not write a recording")
     run.add_argument("--can-log", type=Path, help="CAN log to write; format by suffix (.asc .blf .log "
@@ -157,6 +176,9 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
     _add_can_options(run)
     add_fault_options(run)
+    from humanoid_twin.controllers import add_controller_options
+
+    add_controller_options(run)     # --law, --host-controller, --host-period-ms (docs/controllers.md)
 
     serve = sub.add_parser(
         "serve",
@@ -166,8 +188,12 @@ def build_parser() -> argparse.ArgumentParser:
     )
     where = serve.add_mutually_exclusive_group()
     where.add_argument("--pty", action="store_true", help="serve on a pseudo-terminal (default)")
-    where.add_argument("--tcp", type=int, metavar="PORT", help="serve on TCP PORT (0: any free port)")
-    serve.add_argument("--host", default="127.0.0.1", help="address to bind with --tcp (default 127.0.0.1)")
+    where.add_argument("--tcp", type=_tcp_port, metavar="PORT", help="serve on TCP PORT (0: any free port)")
+    serve.add_argument("--host", default="127.0.0.1", help="address to bind with --tcp (default 127.0.0.1; "
+                       "::1 for IPv6 loopback)")
+    serve.add_argument("--idle-timeout", type=_non_negative, default=600.0, metavar="S",
+                       help="disconnect a TCP client that sent nothing for S wall seconds, so that a "
+                       "silent client cannot hold the port (default 600; 0: never)")
     serve.add_argument("--seed", type=int, default=0, help="random seed")
     serve.add_argument("--tilt", type=_degrees, default=0.0, help="tilt the platform slowly to DEG")
     _add_can_options(serve)
@@ -216,7 +242,14 @@ def cmd_run(args: argparse.Namespace) -> int:
             raise _usage_error(f"--can-log {args.can_log}: python-can has no writer for "
                                f"{suffix or 'no suffix'!r} (use one of {' '.join(sorted(MESSAGE_WRITERS))})")
         _check_writable(args.can_log, "--can-log")
+    from humanoid_twin.controllers import ControllerError, controller_run_options
+
+    try:
+        controllers = controller_run_options(args)
+    except ControllerError as exc:
+        raise _usage_error(str(exc)) from None
     opts = RunOptions(
+        **controllers,
         scenario=args.scenario, duration=args.duration, T=args.T, motion=args.motion, perna=args.perna,
         out=out, can_log=args.can_log, control=args.control, tilt=args.tilt, seed=args.seed,
         progress=not args.no_progress, can_interface=args.can_interface, can_channel=args.can_channel,
@@ -239,6 +272,9 @@ def cmd_run(args: argparse.Namespace) -> int:
         summary["recording"] = str(out)
     if args.can_log is not None:
         summary["can_log"] = str(args.can_log)
+    for fault in summary.get("law_faults", ()):
+        sys.stderr.write(f"humanoid-twin: control law {fault['law']} stopped on SCU {fault['scu']} at "
+                         f"t={fault['t_s']} s: {fault['reason']}\n")
     _print_summary(summary, args.json)
     return EXIT_SUPERVISOR if summary.get("mode") in ("safe", "estop") else 0
 
@@ -254,8 +290,10 @@ def _print_summary(summary: dict, as_json: bool) -> None:
 
 def cmd_serve(args: argparse.Namespace) -> int:
     """``humanoid-twin serve``: real-time pacing, the port on the first stdout line."""
-    from humanoid_twin.serve import serve
+    from humanoid_twin.serve import ServeError, serve
 
+    if args.tcp is not None:
+        _check_bind(args.host, args.tcp)
     stop = {"flag": False}
 
     def _stop(signum: int, frame: object) -> None:
@@ -265,10 +303,31 @@ def cmd_serve(args: argparse.Namespace) -> int:
     signal.signal(signal.SIGINT, _stop)
     from humanoid_twin.faults import supervisor_config
 
-    return serve(tcp_port=args.tcp, host=args.host, seed=args.seed, tilt=args.tilt,
-                 can_interface=args.can_interface, can_channel=args.can_channel,
-                 faults=tuple(args.fault), supervisor=supervisor_config(args),
-                 should_stop=lambda: stop["flag"])
+    try:
+        return serve(tcp_port=args.tcp, host=args.host, seed=args.seed, tilt=args.tilt,
+                     can_interface=args.can_interface, can_channel=args.can_channel,
+                     faults=tuple(args.fault), supervisor=supervisor_config(args),
+                     should_stop=lambda: stop["flag"], idle_timeout_s=args.idle_timeout or None)
+    except ServeError as exc:
+        raise _usage_error(str(exc)) from None
+
+
+def _check_bind(host: str, port: int) -> None:
+    """The TCP address is one this machine can listen on, before the twin boots (exit 2 otherwise)."""
+    import socket
+
+    try:
+        infos = socket.getaddrinfo(host, port, 0, socket.SOCK_STREAM, 0, socket.AI_PASSIVE)
+    except (socket.gaierror, UnicodeError) as exc:
+        raise _usage_error(f"--host {host}: not an address or a known host name ({exc})") from None
+    family, _, _, _, addr = infos[0]
+    try:
+        with socket.socket(family, socket.SOCK_STREAM) as s:
+            s.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+            s.bind(addr)
+            s.listen(1)
+    except OSError as exc:
+        raise _usage_error(f"--host {host} --tcp {port}: cannot listen: {exc.strerror or exc}") from None
 
 
 def cmd_view(args: argparse.Namespace) -> int:

@@ -1,11 +1,15 @@
 """Module SERVO of the Slave firmware (seed 000 section 3, tables 8-11).
 
 Calibration of the position measurement and of the force sensors (``calibration``), the stored
-reference of each servo (``servoRequest``), and the controllers called by ``controller`` (table
-11): ``openloopControl`` (NO_CONTROL), ``locomotionControl`` (LOCOMOTION_CONTROL, incremental
-PID, fig. 8), ``reactionControl`` (REACTION_CONTROL, proportional CoP law) and
-``jacobianControl`` (BALANCE_CONTROL, Jacobian-transpose CoP law), table 10; the two balance laws
-give joint *velocities*, turned into positions by ``applyVelocity`` with a velocity limiter.
+reference of each servo (``servoRequest``), and ``controller`` (table 11), which runs each
+servo's control law. The laws are plug-ins (``slave/laws.py``, docs/controllers.md): one per
+control type of table 9, by default ``openloopControl`` (NO_CONTROL), ``locomotionControl``
+(LOCOMOTION_CONTROL, incremental PID, fig. 8), ``reactionControl`` (REACTION_CONTROL,
+proportional CoP law) and ``jacobianControl`` (BALANCE_CONTROL, Jacobian-transpose CoP law),
+table 10. Position laws give the position to apply; velocity laws (the balance laws) give joint
+*velocities*, turned into positions by ``applyVelocity`` with a velocity limiter. SERVO keeps
+what is the board's, whatever the law: the CoP filter and dead band, ``applyVelocity``, and the
+stop of a law that fails (it holds the servos and reports a ``LawFault``).
 
 Fixed-point scales (docs/firmware.md, "SERVO"; docs/balance.md): every gain is the raw CAN byte.
 - PID: the command ``u`` is held in 1/16 degree, the error ``e`` in whole degrees, so a gain byte
@@ -26,17 +30,27 @@ Fixed-point scales (docs/firmware.md, "SERVO"; docs/balance.md): every gain is t
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import Any
 
-from humanoid_twin.hardware import (
-    FORCE_CALIBRATION_VALUE,
-    N_SERVOS,
-    N_SPECIAL_SENSORS,
-    POS_MAX_DEG,
-    POS_MIN_DEG,
-    POT_COUNTS_PER_DEG,
-)
-from humanoid_twin.slave.data import divround, jacobianMatrix
+from humanoid_twin.hardware import FORCE_CALIBRATION_VALUE, N_SERVOS, N_SPECIAL_SENSORS, POT_COUNTS_PER_DEG
+from humanoid_twin.protocol.wire import POS_LIMIT_DEG
+from humanoid_twin.slave.data import divround
 from humanoid_twin.slave.database import Actuators, Control
+from humanoid_twin.slave.laws import (
+    BUILTIN_LAWS,
+    GAIN_SHIFT_MAX,
+    JACOBIAN_SHIFT,
+    ONE_DEG_PER_TICK,
+    PID_SHIFT,
+    POSITION,
+    VELOCITY_MAX,
+    VELOCITY_MIN,
+    ControlLaw,
+    LawFault,
+    LawInputs,
+    balance_gain_bytes,
+)
+from humanoid_twin.slave.pic2 import limitPosition
 
 __all__ = [
     "NO_CONTROL",
@@ -64,20 +78,15 @@ LOCOMOTION_CONTROL = 1
 REACTION_CONTROL = 2
 BALANCE_CONTROL = 3
 
-PID_SHIFT = 4                # u in 1/16 degree: gain byte K = K/16
-JACOBIAN_SHIFT = 16          # v_q8 = (KP * J^T e) >> 16
 VELOCITY_LIMIT_Q8 = 256      # applyVelocity limiter: 1 degree per tick (50 deg/s)
 # Additions to the manual's balance laws (docs/balance.md, "Interpretations"):
 COP_FILTER_SHIFT = 3         # CoP low-pass f += (CoP - f) >> 3: time constant 8 ticks (160 ms)
 COP_DEAD_BAND_MM = 1         # |e| <= 1 mm (the CoP's resolution) gives no action
-GAIN_SHIFT_MAX = 15          # KD byte = the balance gain's binary exponent, 0..15
 _V_MAX16 = VELOCITY_LIMIT_Q8 << 8
+assert _V_MAX16 == ONE_DEG_PER_TICK
 
 CALIB_SETTLE_TICKS = 100     # "esperar dois segundos" = 100 PWM periods
 CALIB_SAMPLES = 25           # "25 medidas (25 períodos de PWM)"
-
-_U_MAX = POS_MAX_DEG << PID_SHIFT
-_U_MIN = POS_MIN_DEG << PID_SHIFT
 
 
 def balance_gain(control: Control) -> tuple[int, int]:
@@ -85,14 +94,8 @@ def balance_gain(control: Control) -> tuple[int, int]:
     with KP the KP byte read as a signed char (-128..127: a negative gain moves the foot, not
     the mass centre; docs/balance.md) and ``shift`` the KD byte (0..:data:`GAIN_SHIFT_MAX`),
     the gain's binary exponent: the law's velocity is divided by ``2**shift``. KD = 0 gives
-    the scales of the module docstring."""
-    kp = control.kp
-    if kp > 127:
-        kp -= 256
-    shift = control.kd
-    if shift > GAIN_SHIFT_MAX:
-        shift = GAIN_SHIFT_MAX
-    return kp, shift
+    the scales of the module docstring (``laws.balance_gain_bytes``)."""
+    return balance_gain_bytes(control.kp, control.kd)
 
 
 def calibration_b(pos_master: int, adc_sum: int, n: int = CALIB_SAMPLES) -> int:
@@ -148,7 +151,7 @@ class Calibration:
         """Step 2: the requested positions are latched (the caller applies them directly)."""
         for i in range(N_SERVOS):
             p = int(pos_master[i])
-            self.pos_master[i] = POS_MAX_DEG if p > POS_MAX_DEG else POS_MIN_DEG if p < POS_MIN_DEG else p
+            self.pos_master[i] = limitPosition(p)
             self.adc_sum[i] = 0
         for k in range(N_SPECIAL_SENSORS):
             self.force_sum[k] = 0
@@ -188,65 +191,104 @@ class Calibration:
 
 
 class ServoControl:
-    """The SERVO module of one Slave: references, controller state and outputs of 3 servos.
+    """The SERVO module of one Slave: references, control laws and outputs of 3 servos.
 
     ``has_foot``: whether the board carries a force-sensing foot (leg boards 1 and 2). On a board
-    without one, and for the knee under REACTION_CONTROL (the law acts on the two foot joints
-    only), REACTION and BALANCE behave as NO_CONTROL: the servo follows its trajectory
-    (docs/firmware.md). ``signs``: the servo-to-kinematic angle signs of the leg
-    (``data.jacobianMatrix``), which also give the direction of the REACTION law.
+    without one, a law with ``needs_foot`` (REACTION, BALANCE) behaves as NO_CONTROL: the servo
+    follows its trajectory (docs/firmware.md); REACTION acts on the two foot joints only (the knee
+    follows its trajectory). ``signs``: the servo-to-kinematic angle signs of the leg
+    (``data.jacobianMatrix``), which also give the direction of the REACTION law. ``scu`` and
+    ``clock``: the board's address and clock, for the :class:`~humanoid_twin.slave.laws.LawFault`
+    of a law that fails. The laws: :meth:`law`, :meth:`set_law` (``slave/laws.py``).
     """
 
     __slots__ = (
         "actuators",
         "has_foot",
         "signs",
+        "scu",
+        "clock",
         "reference",
         "output",
         "types",
-        "u16",
-        "e1",
-        "e2",
-        "fresh",
         "acc",
         "cop_ref",
         "cop_f",
         "cop_primed",
         "last_v",
-        "last_jacobian",
+        "laws",
+        "inputs",
+        "law_fault",
+        "_stopped",
     )
 
-    def __init__(self, actuators: Actuators, has_foot: bool, signs: Sequence[int] = (1, 1, 1)) -> None:
+    def __init__(self, actuators: Actuators, has_foot: bool, signs: Sequence[int] = (1, 1, 1),
+                 scu: int = 0, clock: Any = None) -> None:
         self.actuators = actuators
         self.has_foot = has_foot
         self.signs: tuple[int, int, int] = (int(signs[0]), int(signs[1]), int(signs[2]))
         if any(s not in (-1, 1) for s in self.signs):
             raise ValueError(f"leg signs must be +1 or -1, got {signs!r}")
+        self.scu = scu
+        self.clock = clock
         self.reference: list[int] = [0] * N_SERVOS   # servoRequest (trajectory output)
         self.output: list[int] = [0] * N_SERVOS      # position for servoActuation
         self.types: list[int] = [NO_CONTROL] * N_SERVOS
-        self.u16: list[int] = [0] * N_SERVOS         # PID command, 1/16 degree
-        self.e1: list[int] = [0] * N_SERVOS
-        self.e2: list[int] = [0] * N_SERVOS
-        self.fresh: list[bool] = [True] * N_SERVOS
         self.acc: list[int] = [0] * N_SERVOS         # balance offset accumulator, 1/65536 degree
         self.cop_ref: list[int] = [0, 0]             # CoP reference (mm, foot frame): foot centre
         self.cop_f: list[int] = [0, 0]               # filtered CoP, 1/256 mm
         self.cop_primed = False
         self.last_v: list[int] = [0] * N_SERVOS      # last velocity applied (Q8), for recording
-        self.last_jacobian: tuple | None = None
+        # one instance of each control type's law on this board (table 9 order)
+        self.laws: dict[int, ControlLaw] = {t: make() for t, make in BUILTIN_LAWS.items()}
+        self.inputs = LawInputs(scu, has_foot, self.signs)
+        self.law_fault: LawFault | None = None       # the first law stopped on this board (kept)
+        self._stopped: set[int] = set()               # control types whose law was stopped
+
+    # -- laws --------------------------------------------------------------------------------
+    def law(self, ctype: int) -> ControlLaw:
+        """The law run for control type ``ctype`` (0-3) on this board."""
+        return self.laws[ctype if ctype in self.laws else BALANCE_CONTROL]
+
+    def set_law(self, ctype: int, law: ControlLaw) -> None:
+        """Run ``law`` for control type ``ctype`` (0-3) from the next tick; servos already on
+        that type start under it now (:meth:`ControlLaw.start`)."""
+        if ctype not in BUILTIN_LAWS:
+            raise ValueError(f"control type must be 0..3 (table 9), got {ctype!r}")
+        self.laws[ctype] = law
+        self._stopped.discard(ctype)
+        self._fill_inputs(None)
+        for i in range(N_SERVOS):
+            if self.types[i] == ctype:
+                law.start(i, self.inputs)
+
+    @property
+    def stopped_types(self) -> frozenset[int]:
+        """Control types whose law this board stopped (it holds those servos until the next
+        calibration, which starts every law again)."""
+        return frozenset(self._stopped)
+
+    @property
+    def law_stopped(self) -> bool:
+        """Whether a law is stopped now (Sensors 2 SFlags bit 2: the supervisor's ``law`` fault)."""
+        return bool(self._stopped)
 
     # -- references --------------------------------------------------------------------------
     def reset(self, positions: Sequence[int]) -> None:
         """Every servo at rest at ``positions`` (after calibration): references, outputs and
-        controller state."""
+        controller state (every law starts every servo: ``initController``; a stopped law
+        runs again)."""
+        self._stopped.clear()
         for i in range(N_SERVOS):
             p = int(positions[i])
             self.reference[i] = p
             self.output[i] = p
             self.acc[i] = 0
             self.last_v[i] = 0
-            self.initController(i)
+        self._fill_inputs(None)
+        for law in self.laws.values():
+            for i in range(N_SERVOS):
+                self._start(law, i)
 
     def servoRequest(self, i: int, position: int) -> None:
         """``servoRequest`` (table 8): store the position servo ``i`` must reach (used by the
@@ -259,77 +301,120 @@ class ServoControl:
         self.acc[i] = 0
 
     # -- controllers -------------------------------------------------------------------------
-    def initController(self, i: int) -> None:
-        """``initController`` (table 8): the PID state of servo ``i``: command = the position
-        applied now (bumpless), past errors taken equal to the first error seen."""
-        self.u16[i] = self.output[i] << PID_SHIFT
-        self.e1[i] = 0
-        self.e2[i] = 0
-        self.fresh[i] = True
-
     def controller(
-        self, measured: Sequence[int], cop_x: int, cop_y: int, loaded: bool, types: Sequence[int]
+        self, measured: Sequence[int], cop_x: int, cop_y: int, loaded: bool, types: Sequence[int],
+        forces: Sequence[int] | None = None,
     ) -> None:
         """``controller`` (table 8): run each servo's control law (table 11) for this tick;
         the positions to apply are left in ``output``.
 
         ``measured``: positions (whole degrees), ``cop_x/cop_y``: the foot's CoP (mm) and
-        ``loaded`` whether it is meaningful, ``types``: the control type of each servo. On a
-        leg board the CoP is filtered every tick (:meth:`filterCoP`), whatever the types, so a
-        balance law switched on later starts from a settled value.
+        ``loaded`` whether it is meaningful, ``types``: the control type of each servo,
+        ``forces``: the 7-bit force values (for the laws' inputs). On a leg board the CoP is
+        filtered every tick (:meth:`filterCoP`), whatever the types, so a balance law switched
+        on later starts from a settled value. Each law in use runs once, for its servos.
         """
-        ex = ey = 0
+        loaded = bool(loaded) and self.has_foot
         if self.has_foot:
             self.filterCoP(cop_x, cop_y, loaded)
-            if loaded:
-                ex, ey = self.copError()
-        jacobian_done = False
+        inp = self._fill_inputs(measured, loaded, forces)
+        mine = self.types
         for i in range(N_SERVOS):
             t = types[i]
-            if t != self.types[i]:
-                self.types[i] = t
+            if t != mine[i]:
+                mine[i] = t
                 self.acc[i] = 0
-                if t == LOCOMOTION_CONTROL:
-                    self.initController(i)
-            if t == NO_CONTROL:
-                self.openloopControl(i)
-            elif t == LOCOMOTION_CONTROL:
-                self.locomotionControl(i, measured[i])
-            elif not self.has_foot:
-                self.openloopControl(i)
-            elif t == REACTION_CONTROL:
-                if i < 2:
-                    self.reactionControl(i, ex, ey, loaded)
-                else:
-                    self.openloopControl(i)
-            else:  # BALANCE_CONTROL
-                if not jacobian_done:
-                    self.jacobianControl(measured, ex, ey, loaded, types)
-                    jacobian_done = True
+                self._start(self.law(t), i)
+        done = 0
+        for i in range(N_SERVOS):
+            t = mine[i]
+            if done >> i & 1:
+                continue
+            servos = tuple(j for j in range(i, N_SERVOS) if mine[j] == t)
+            for j in servos:
+                done |= 1 << j
+            law = self.law(t)
+            if law.needs_foot and not self.has_foot:
+                for j in servos:
+                    self.output[j] = self.reference[j]
+                continue
+            if t in self._stopped:
+                continue                        # stopped: the servos hold their last output
+            inp.servos = servos
+            values = self._run(law, t, inp)
+            if values is None:
+                continue
+            if law.output == POSITION:
+                for j in servos:
+                    self.output[j] = values[j]
+            else:
+                for j in servos:
+                    self._apply16(j, values[j])
 
-    def openloopControl(self, i: int) -> None:
-        """``openloopControl`` (table 11): the requested position goes to the servo unchanged."""
-        self.output[i] = self.reference[i]
+    def _start(self, law: ControlLaw, i: int) -> None:
+        try:
+            law.start(i, self.inputs)
+        except Exception as exc:   # a user's law: any failure stops it, named
+            self._stop(law, self._type_of(law), f"start({i}) raised {type(exc).__name__}: {exc}")
 
-    def locomotionControl(self, i: int, measured: int) -> None:
-        """``locomotionControl`` (table 11, fig. 8): incremental PID on the servo position,
-        integers, gains Q4.4 (see the module docstring)."""
-        c = self.actuators.control[i]
-        e = self.reference[i] - measured
-        if self.fresh[i]:
-            self.e1[i] = self.e2[i] = e
-            self.fresh[i] = False
-        e1 = self.e1[i]
-        e2 = self.e2[i]
-        u = self.u16[i] + c.kp * (e - e1) + c.ki * e + c.kd * (e - 2 * e1 + e2)
-        if u > _U_MAX:
-            u = _U_MAX
-        elif u < _U_MIN:
-            u = _U_MIN
-        self.u16[i] = u
-        self.e2[i] = e1
-        self.e1[i] = e
-        self.output[i] = (u + 8) >> PID_SHIFT
+    def _type_of(self, law: ControlLaw) -> int:
+        return next((t for t, x in self.laws.items() if x is law), BALANCE_CONTROL)
+
+    def _run(self, law: ControlLaw, t: int, inp: LawInputs) -> Sequence[int] | None:
+        """One step of ``law``; None (and the law stopped) if it raised or returned bad values."""
+        try:
+            values = law.step(inp)
+        except Exception as exc:   # a user's law: any failure stops it, named
+            self._stop(law, t, f"step raised {type(exc).__name__}: {exc}")
+            return None
+        try:
+            n = len(values)
+        except TypeError:
+            n = -1
+        if n != N_SERVOS:
+            self._stop(law, t, f"step returned {values!r}: expected {N_SERVOS} ints, one per servo")
+            return None
+        position = law.output == POSITION
+        lo, hi = (-POS_LIMIT_DEG, POS_LIMIT_DEG) if position else (VELOCITY_MIN, VELOCITY_MAX)
+        for j in inp.servos:
+            v = values[j]
+            if type(v) is not int:
+                self._stop(law, t, f"step returned {v!r} ({type(v).__name__}) for servo {j}: the firmware "
+                           "computes with ints only")
+                return None
+            if not lo <= v <= hi:
+                what = "position (degrees)" if position else "velocity (1/65536 degree per tick)"
+                self._stop(law, t, f"step returned {what} {v} for servo {j}, outside {lo}..{hi}")
+                return None
+        return values
+
+    def _stop(self, law: ControlLaw, t: int, reason: str) -> None:
+        """Stop the law of control type ``t``: its servos hold their last output from now on."""
+        self._stopped.add(t)
+        cls = type(law)
+        name = f"{cls.__module__}:{cls.__qualname__}"
+        if self.law_fault is None:
+            now = self.clock.now_us if self.clock is not None else 0
+            self.law_fault = LawFault(now, self.scu, t, name, reason)
+
+    def _fill_inputs(self, measured: Sequence[int] | None, loaded: bool = False,
+                     forces: Sequence[int] | None = None) -> LawInputs:
+        inp = self.inputs
+        if measured is not None:
+            inp.measured = tuple(measured)
+        inp.reference = tuple(self.reference)
+        inp.output = tuple(self.output)
+        if loaded:
+            inp.cop_mm = ((self.cop_f[0] + 128) >> 8, (self.cop_f[1] + 128) >> 8)
+            inp.cop_error_mm = self.copError()
+        else:
+            inp.cop_mm = None
+            inp.cop_error_mm = (0, 0)
+        inp.cop_ref_mm = (self.cop_ref[0], self.cop_ref[1])
+        if forces is not None:
+            inp.forces = tuple(forces)
+        inp.gains = tuple((c.ki, c.kp, c.kd) for c in self.actuators.control)
+        return inp
 
     def filterCoP(self, cop_x: int, cop_y: int, loaded: bool) -> None:
         """The CoP seen by the balance laws: ``calcCoP``'s value low-passed once per tick,
@@ -360,49 +445,6 @@ class ServoControl:
             ey = 0
         return ex, ey
 
-    def reactionControl(self, i: int, ex: int, ey: int, loaded: bool) -> None:
-        """``reactionControl`` (table 10): ``v_x = KPx e_x`` on the foot lateral joint (servo
-        0), ``v_y = KPy e_y`` on the foot front joint (servo 1), ``e = CoP_ref - CoP_med`` in
-        mm (:meth:`copError`); KPx, KPy = the KP bytes of servos 0 and 1, read as signed
-        (:func:`balance_gain`, with KD the gain's binary exponent). The sign of each law is the
-        sign of the joint's lever on the mass centre at the straight leg (``signs``), so that a
-        positive gain moves the mass centre, and the CoP, toward the reference; a negative gain
-        moves the foot instead (compliance). No action while the foot is unloaded."""
-        if not loaded:
-            self._apply16(i, 0)
-            return
-        kp, shift = balance_gain(self.actuators.control[i])
-        if i == 0:
-            v = self.signs[0] * kp * ex
-        else:
-            v = -self.signs[1] * kp * ey
-        # velocity in 1/65536 degree per tick: KP/256 degree per tick per mm, / 2^KD
-        self._apply16(i, _shr(v << 8, shift))
-
-    def jacobianControl(
-        self, measured: Sequence[int], ex: int, ey: int, loaded: bool, types: Sequence[int]
-    ) -> None:
-        """``JacobianControl`` (table 10): ``v_j = KP_j (J_1j e_x + J_2j e_y)`` for the foot
-        lateral, foot front and knee joints, ``J`` from ``jacobianMatrix`` at the measured
-        positions (DATA), ``e = CoP_ref - CoP_med`` (mm, :meth:`copError`), ``e_z = 0``.
-        Applied to the servos whose type is BALANCE_CONTROL, with each servo's signed gain
-        (:func:`balance_gain`); no action while the foot is unloaded."""
-        if not loaded:
-            for i in range(N_SERVOS):
-                if types[i] == BALANCE_CONTROL:
-                    self._apply16(i, 0)
-            return
-        J = jacobianMatrix(measured[0], measured[1], measured[2], self.signs)
-        self.last_jacobian = J
-        ctrl = self.actuators.control
-        j0 = J[0]
-        j1 = J[1]
-        for i in range(N_SERVOS):
-            if types[i] == BALANCE_CONTROL:
-                kp, shift = balance_gain(ctrl[i])
-                # (KP * J^T e) >> 16 in 1/256 degree per tick, i.e. >> 8 in 1/65536
-                self._apply16(i, _shr(kp * (j0[i] * ex + j1[i] * ey), JACOBIAN_SHIFT - 8 + shift))
-
     def applyVelocity(self, i: int, v_q8: int) -> None:
         """``applyVelocity``: a velocity (1/256 degree per tick) becomes a position increment
         (see :meth:`_apply16`, which the balance laws call with 8 more fractional bits)."""
@@ -420,16 +462,11 @@ class ServoControl:
         self.last_v[i] = v >> 8 if v >= 0 else -((-v) >> 8)
         ref = self.reference[i]
         acc = self.acc[i] + v
-        hi = (POS_MAX_DEG - ref) << 16
-        lo = (POS_MIN_DEG - ref) << 16
+        hi = (POS_LIMIT_DEG - ref) << 16
+        lo = (-POS_LIMIT_DEG - ref) << 16
         if acc > hi:
             acc = hi
         elif acc < lo:
             acc = lo
         self.acc[i] = acc
         self.output[i] = ref + ((acc + 32768) >> 16)
-
-
-def _shr(v: int, n: int) -> int:
-    """``v / 2^n`` truncated toward zero (C ``/`` by a power of two on a signed value)."""
-    return v >> n if v >= 0 else -((-v) >> n)

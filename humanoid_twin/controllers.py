@@ -1,0 +1,210 @@
+"""User controllers: firmware laws (``--law``) and PC-side loops (``--host-controller``).
+
+docs/controllers.md is the how-to. Two ways to put your own controller on the twin:
+
+- **A firmware control law** (``slave/laws.py``): runs inside every Slave each 20 ms tick, in
+  integers, for one control type of table 9. ``humanoid-twin run ... --law balance=mypkg.mylaw:MyLaw``
+  (repeatable), ``RunOptions(laws=(("balance", "mypkg.mylaw:MyLaw"),))``, or an entry point of
+  the group ``humanoid_twin.laws`` (``--law balance=NAME``).
+- **A PC-side controller**: a function ``step(ctx)`` the host calls every N ms of simulated time
+  (``--host-controller mypkg.ctl:step --host-period-ms 20``) with :class:`HostContext`: the host
+  toolbox bound to the twin's serial port (``ctx.host.readspecial(1)``, the same functions that
+  drive the real robot, docs/host.md), the ground-truth :class:`~humanoid_twin.monitor.Monitor`
+  (for evaluation: a real robot has none) and a ``state`` dict for the function's own memory.
+"""
+
+from __future__ import annotations
+
+import argparse
+import functools
+import importlib
+import inspect
+import math
+import os
+import sys
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+from humanoid_twin import host as _host
+from humanoid_twin.host.timebase import now as host_now
+from humanoid_twin.host.timebase import sleep as host_sleep
+from humanoid_twin.monitor import Monitor
+from humanoid_twin.slave.laws import LawError, load_law, parse_law_option
+
+__all__ = [
+    "DEFAULT_HOST_PERIOD_MS",
+    "ControllerError",
+    "HostToolbox",
+    "HostContext",
+    "load_host_controller",
+    "run_host_controller",
+    "add_controller_options",
+    "controller_run_options",
+]
+
+DEFAULT_HOST_PERIOD_MS = 20
+HostStep = Callable[["HostContext"], Any]
+
+
+class ControllerError(ValueError):
+    """A ``--host-controller`` or ``--law`` value that cannot be used (one line: why)."""
+
+
+def _takes_port(fn: Any) -> bool:
+    try:
+        params = list(inspect.signature(fn).parameters)
+    except (TypeError, ValueError):
+        return False
+    return bool(params) and params[0] == "H"
+
+
+# The toolbox functions whose first argument is the port H (readjoint, applyjoint, exe_traj ...).
+_PORT_FUNCTIONS = tuple(n for n in _host.__all__
+                        if callable(getattr(_host, n)) and _takes_port(getattr(_host, n)))
+
+
+class HostToolbox:
+    """The host toolbox (``humanoid_twin.host``) with the port bound: ``tb.readspecial(1)`` is
+    ``readspecial(H, 1)``. Functions without a port (``calccop``, the planners) are as they are."""
+
+    def __init__(self, H: Any) -> None:
+        self.H = H
+
+    def __getattr__(self, name: str) -> Any:
+        if name.startswith("_") or name not in _host.__all__:
+            raise AttributeError(f"the host toolbox has no {name!r} (docs/host.md)")
+        fn = getattr(_host, name)
+        if name in _PORT_FUNCTIONS:
+            return functools.partial(fn, self.H)
+        return fn
+
+    def __dir__(self) -> list[str]:
+        return sorted(_host.__all__)
+
+
+@dataclass
+class HostContext:
+    """What a PC-side controller's ``step(ctx)`` gets each call.
+
+    ``H``: the serial port; ``host``: the toolbox bound to it (:class:`HostToolbox`);
+    ``monitor``: the run's ground-truth monitor; ``period_s``: the call period; ``calls``: calls
+    so far (0 at the first); ``state``: a dict kept between calls; :attr:`t` the host's clock (s).
+    """
+
+    H: Any
+    host: HostToolbox
+    monitor: Monitor
+    period_s: float
+    calls: int = 0
+    state: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def t(self) -> float:
+        """The host's time (s): the twin's virtual time on the in-process port."""
+        return host_now(self.H)
+
+
+def _name_of(fn: Any) -> str:
+    return f"{getattr(fn, '__module__', '?')}:{getattr(fn, '__qualname__', repr(fn))}"
+
+
+def load_host_controller(ref: str | HostStep) -> HostStep:
+    """``"module.path:function"`` (or a callable) -> the ``step(ctx)`` function; raises
+    :class:`ControllerError` with a one-line reason."""
+    if callable(ref):
+        return ref
+    mod_name, sep, attr = str(ref).strip().partition(":")
+    if not sep or not mod_name or not attr:
+        raise ControllerError(f"--host-controller {ref!r}: expected module:function")
+    try:
+        obj: Any = importlib.import_module(mod_name)
+    except Exception as exc:   # a user's module: any import failure is a bad option
+        raise ControllerError(f"--host-controller {ref!r}: cannot import {mod_name!r}: "
+                              f"{type(exc).__name__}: {exc}") from None
+    for part in attr.split("."):
+        obj = getattr(obj, part, None)
+        if obj is None:
+            raise ControllerError(f"--host-controller {ref!r}: module {mod_name!r} has no {attr!r}")
+    if not callable(obj):
+        raise ControllerError(f"--host-controller {ref!r} is not a function")
+    return obj
+
+
+def run_host_controller(H: Any, step: HostStep, monitor: Monitor, until_s: float,
+                        period_ms: float = DEFAULT_HOST_PERIOD_MS,
+                        should_stop: Callable[[], bool] | None = None) -> HostContext:
+    """Call ``step(ctx)`` every ``period_ms`` of the host's time until ``until_s`` (a call that
+    overruns its period delays the next one, as on a real PC). An exception from ``step`` is
+    raised again as :class:`RuntimeError` naming the function."""
+    period = period_ms / 1000.0
+    ctx = HostContext(H, HostToolbox(H), monitor, period)
+    next_t = host_now(H)
+    while next_t < until_s - 1e-9:
+        if should_stop is not None and should_stop():
+            break
+        try:
+            step(ctx)
+        except Exception as exc:   # a user's function: report it by name
+            raise RuntimeError(f"host controller {_name_of(step)} raised {type(exc).__name__} at "
+                               f"t={host_now(H):.3f} s (call {ctx.calls}): {exc}") from exc
+        ctx.calls += 1
+        next_t += period
+        now = host_now(H)
+        if next_t < now:                      # overran: the next call starts now
+            next_t = now
+        wait = min(next_t, until_s) - now
+        if wait > 0:
+            host_sleep(H, wait)
+    rest = until_s - host_now(H)
+    if rest > 0:
+        host_sleep(H, rest)
+    return ctx
+
+
+# ---------------------------------------------------------------------------------------------
+# CLI: `run --law TYPE=REF (repeatable) --host-controller MOD:FUNC --host-period-ms N`
+
+
+def add_controller_options(p: argparse.ArgumentParser) -> None:
+    """Add ``--law``, ``--host-controller`` and ``--host-period-ms`` to ``run`` (docs/controllers.md)."""
+    p.add_argument("--law", action="append", default=[], metavar="TYPE=MODULE:CLASS",
+                   help="run your firmware control law for one control type (none, locomotion, reaction, "
+                   "balance) on every Slave; MODULE:CLASS or an entry point of group humanoid_twin.laws; "
+                   "repeatable")
+    p.add_argument("--host-controller", metavar="MODULE:FUNCTION",
+                   help="call FUNCTION(ctx) every --host-period-ms of simulated time with the host toolbox "
+                   "bound to the twin's port and the ground-truth monitor")
+    p.add_argument("--host-period-ms", type=_period_ms, default=DEFAULT_HOST_PERIOD_MS, metavar="N",
+                   help="period of --host-controller in ms of simulated time "
+                   f"(default {DEFAULT_HOST_PERIOD_MS})")
+
+
+def _period_ms(text: str) -> float:
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number of milliseconds: {text!r}") from None
+    if not math.isfinite(v) or not 1 <= v <= 10_000:
+        raise argparse.ArgumentTypeError(f"must be 1..10000 ms, got {text!r}")
+    return v
+
+
+def controller_run_options(args: argparse.Namespace) -> dict[str, Any]:
+    """The ``RunOptions`` fields of the controller options, loaded and checked before the run
+    starts (so a bad value writes nothing). Raises :class:`ControllerError` (a usage error).
+    As ``python -m`` does, the current directory is importable (``--law balance=mylaw:MyLaw``
+    finds ``./mylaw.py``)."""
+    if (getattr(args, "law", None) or getattr(args, "host_controller", None)) and os.getcwd() not in sys.path:
+        sys.path.insert(0, os.getcwd())
+    laws: list[tuple[int, Any]] = []
+    try:
+        for text in getattr(args, "law", None) or ():
+            ctype, ref = parse_law_option(text)
+            laws.append((ctype, load_law(ref)))
+    except LawError as exc:
+        raise ControllerError(str(exc)) from None
+    ctl = getattr(args, "host_controller", None)
+    step = load_host_controller(ctl) if ctl else None
+    return {"laws": tuple(laws), "host_controller": step,
+            "host_period_ms": getattr(args, "host_period_ms", DEFAULT_HOST_PERIOD_MS)}

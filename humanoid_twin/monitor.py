@@ -1,0 +1,106 @@
+"""The ground-truth run monitor: did the robot fall, how close did its CoP get to the edge of the
+support polygon, how well did the firmware estimate each foot's CoP.
+
+Public API (stable; ``scenarios.run``, the balance study and user controllers use it)::
+
+    from humanoid_twin.monitor import Monitor
+    twin = Twin(seed=0)
+    mon = Monitor(twin)          # start_s=...: ignore the samples before that virtual time
+    mon.attach()                 # samples on the twin's clock from now on
+    ...                          # run the twin (serial requests, twin.run_for, ...)
+    mon.fell, mon.fell_at_s, mon.trunk_tilt_max_deg, mon.cop_margin_min_mm, mon.cop_error_rms_mm
+    mon.last                     # the last sampled ``GroundTruth`` (CoP, support polygon, forces)
+
+What it measures (the plant's ground truth, never visible to the firmware or the host):
+
+- every 20 ms of virtual time (one PWM period, after the boards' ticks of that instant), the
+  plant's :class:`~humanoid_twin.plant.plant.GroundTruth`: ``fell`` (trunk tilt or height past
+  the fall limits, docs/model.md), the largest trunk tilt, and the smallest **CoP margin**: the
+  signed distance (mm) of the whole robot's centre of pressure inside the convex hull of the
+  foot pads touching the platform (negative outside it; ``-inf`` while nothing touches);
+- right after each leg board's own tick, the distance between the CoP that board computed from
+  its force sensors (seed 000, ``calcCoP``) and the true CoP of its foot: ``cop_error_rms_mm``.
+
+It only reads the plant; a run with and without it is the same run (its CAN log is identical).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+from humanoid_twin.hardware import FOOT_OF_SCU, PWM_PERIOD_US
+from humanoid_twin.plant.plant import GroundTruth
+from humanoid_twin.twin import Twin
+
+__all__ = ["Monitor", "SAMPLE_PERIOD_US"]
+
+SAMPLE_PERIOD_US = PWM_PERIOD_US      # one sample of the truth per PWM period (20 ms)
+
+
+@dataclass
+class Monitor:
+    """Samples the ground truth every 20 ms of virtual time: ``Monitor(twin, start_s=0.0)``.
+
+    Attributes, updated while the twin runs: ``fell`` / ``fell_at_s`` (first sample that saw the
+    robot fallen), ``trunk_tilt_max_deg``, ``cop_margin_min_mm`` (``inf`` before the first
+    sample, ``-inf`` if nothing touched the platform at some sample), ``samples`` (number of
+    truth samples) and ``last`` (the last :class:`GroundTruth` sampled, ``None`` before the
+    first); property :attr:`cop_error_rms_mm`. Samples before ``start_s`` are ignored.
+    """
+
+    twin: Twin
+    start_s: float = 0.0
+    fell: bool = False
+    trunk_tilt_max_deg: float = 0.0
+    cop_margin_min_mm: float = math.inf
+    _cop_err_sq: float = 0.0
+    _cop_err_n: int = 0
+    samples: int = 0
+    fell_at_s: float | None = None
+    last: GroundTruth | None = field(default=None, repr=False)
+
+    def attach(self) -> None:
+        """Register on the twin's clock: the truth every 20 ms, and the CoP comparison of each
+        leg board right after its own tick (its force samples and the truth of the same instant)."""
+        self.twin.every(SAMPLE_PERIOD_US, self.sample)
+        for scu, foot in FOOT_OF_SCU.items():
+            first = self.twin.slaves[scu].next_tick_us()
+            self.twin.every(SAMPLE_PERIOD_US, lambda scu=scu, foot=foot: self.compare_cop(scu, foot), first)
+
+    def sample(self) -> None:
+        """One 20 ms sample of the truth (after the boards' ticks at this instant)."""
+        twin = self.twin
+        if twin.now_s < self.start_s:
+            return
+        gt = twin.plant.truth()
+        self.last = gt
+        self.samples += 1
+        if gt.fell and not self.fell:
+            self.fell = True
+            self.fell_at_s = twin.now_s
+        self.trunk_tilt_max_deg = max(self.trunk_tilt_max_deg, gt.trunk_tilt_deg)
+        # -inf when nothing touches the platform (the robot is in the air or lying)
+        self.cop_margin_min_mm = min(self.cop_margin_min_mm, gt.cop_margin_mm)
+
+    def compare_cop(self, scu: int, foot: str) -> None:
+        """Firmware CoP of board ``scu`` (computed at its tick, just now) vs the contact CoP."""
+        twin = self.twin
+        slave = twin.slaves[scu]
+        if twin.now_s < self.start_s or not slave.cop_loaded or not slave.calibrated:
+            return
+        truth = twin.plant.foot_cop_mm(foot)
+        if truth is None:
+            return
+        dx = slave.cop_x - truth[0]
+        dy = slave.cop_y - truth[1]
+        self._cop_err_sq += dx * dx + dy * dy
+        self._cop_err_n += 1
+
+    @property
+    def cop_error_rms_mm(self) -> float | None:
+        """RMS distance (mm) between the firmware's and the true CoP of the loaded feet, over
+        the leg boards' ticks since ``start_s``; ``None`` before any loaded-foot tick."""
+        if self._cop_err_n == 0:
+            return None
+        return math.sqrt(self._cop_err_sq / self._cop_err_n)
