@@ -174,6 +174,8 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--json", action="store_true", help="print the summary as one JSON object on the "
                      "last line of stdout")
     run.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
+    run.add_argument("--viewer", action="store_true", help="watch the run live in MuJoCo's own viewer, "
+                     "paced to real time (needs a display)")
     _add_can_options(run)
     add_fault_options(run)
     from humanoid_twin.controllers import add_controller_options
@@ -227,6 +229,16 @@ def cmd_run(args: argparse.Namespace) -> int:
     from humanoid_twin.faults import supervisor_config
     from humanoid_twin.scenarios import RunOptions, ScenarioError, run
 
+    live = None
+    viewer_errors: tuple[type[Exception], ...] = ()
+    if args.viewer:
+        from humanoid_twin.cli.live_viewer import LiveViewer, LiveViewerError, check_display
+
+        try:
+            check_display()
+        except LiveViewerError as exc:
+            raise _usage_error(str(exc)) from None
+        live, viewer_errors = LiveViewer(), (LiveViewerError,)
     out = None if args.no_record else (args.out or Path(f"{args.scenario}.rrd"))
     if out is not None:
         if out.suffix != ".rrd":
@@ -261,13 +273,18 @@ def cmd_run(args: argparse.Namespace) -> int:
 
         bar = RunProgress(args.scenario, sys.stderr)
     try:
-        summary = run(opts, on_progress=None if bar is None else bar.update)
+        summary = run(opts, on_progress=None if bar is None else bar.update,
+                      on_twin=None if live is None else live.attach)
     except ScenarioError as exc:
         sys.stderr.write(f"humanoid-twin: {exc}\n")
         return 1
+    except viewer_errors as exc:        # the window could not open (nothing written yet)
+        raise _usage_error(str(exc)) from None
     finally:
         if bar is not None:
             bar.close()
+        if live is not None:
+            live.close()
     if out is not None:
         summary["recording"] = str(out)
     if args.can_log is not None:
