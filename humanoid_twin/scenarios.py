@@ -41,6 +41,10 @@ class ScenarioError(RuntimeError):
     """A scenario could not run (the twin did not boot, a request failed ...)."""
 
 
+class ScenarioInputError(ScenarioError):
+    """The options ask for something the run cannot do (a ``--duration`` shorter than the boot)."""
+
+
 @dataclass
 class RunOptions:
     """The ``humanoid-twin run`` options (SPEC.md section 6)."""
@@ -190,6 +194,10 @@ def run(opts: RunOptions, on_progress: Callable[[float, float], None] | None = N
                 raise ScenarioError(f"the twin did not boot: {exc}") from exc
             host_error = f"boot: {exc}"     # the supervisor stopped the boot: the run goes on
         boot_s = twin.now_s
+        if opts.duration is not None and opts.duration < boot_s:
+            raise ScenarioInputError(
+                f"--duration {opts.duration:g} is shorter than the boot ({boot_s:.3f} simulated seconds "
+                "from power-on): give at least that")
         the_plan = plan(opts.scenario, T=opts.T, motion=opts.motion, perna=opts.perna)
         if opts.control is not None:
             the_plan = the_plan.with_control(CONTROL_CHOICES[opts.control])
@@ -282,5 +290,5 @@ def _finite(x: float) -> float | None:
     return round(max(x, NO_SUPPORT_MARGIN_MM), 3)
 
 
-__all__ = ["RunOptions", "Monitor", "Plan", "ScenarioError", "SCENARIOS", "CONTROL_CHOICES", "plan",
-           "run", "tilt_profile"]
+__all__ = ["RunOptions", "Monitor", "Plan", "ScenarioError", "ScenarioInputError", "SCENARIOS",
+           "CONTROL_CHOICES", "plan", "run", "tilt_profile"]
