@@ -74,10 +74,6 @@ class Clock:
         self._seq = seq = self._seq + 1
         _heappush(self._queue, (t_us, seq, callback))
 
-    def next_event_us(self) -> int | None:
-        """Time of the next pending event, or None."""
-        return self._queue[0][0] if self._queue else None
-
     def run_until(self, t_us: int) -> None:
         """Run every event due at or before ``t_us``, then set ``now_us = t_us``."""
         queue = self._queue

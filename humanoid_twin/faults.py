@@ -29,7 +29,8 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 from humanoid_twin.clock import US_PER_S
-from humanoid_twin.hardware import FOOT_OF_SCU, N_SCU, N_SERVOS, PWM_PERIOD_US
+from humanoid_twin.hardware import FOOT_OF_SCU, N_SERVOS, PWM_PERIOD_US
+from humanoid_twin.protocol.wire import N_SCU
 
 if TYPE_CHECKING:
     from humanoid_twin.twin import Twin

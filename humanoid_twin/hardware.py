@@ -1,14 +1,15 @@
 """The electrical and mechanical interface between the boards and the robot.
 
-Both sides import these constants: the Slave firmware (what the PIC's timers and ADCs see and
-how the manual's equations convert them) and the plant (how the MuJoCo model produces those
-signals). Each value is documented, with its source, in docs/model.md and docs/firmware.md.
+Electrical and mechanical facts only: the wire's facts (addresses, the position range, bits)
+are in :mod:`humanoid_twin.protocol.wire`. Both sides import these constants: the Slave firmware
+(what the PIC's timers and ADCs see and how the manual's equations convert them) and the plant
+(how the MuJoCo model produces those signals). Each value is documented, with its source, in
+docs/model.md and docs/firmware.md.
 """
 
 from __future__ import annotations
 
-# --- addresses (seed 002 slide 19) ---------------------------------------------------------
-MASTER = 0
+# --- boards (addresses 1..8 and their range check: protocol/wire.py) -------------------------
 SCU_NAMES: dict[int, str] = {
     1: "right_leg",
     2: "left_leg",
@@ -19,7 +20,6 @@ SCU_NAMES: dict[int, str] = {
     7: "left_arm",
     8: "head",
 }
-N_SCU = 8
 N_SERVOS = 3
 N_SPECIAL_SENSORS = 4
 
@@ -42,9 +42,7 @@ FOOT_OF_SCU: dict[int, str] = {1: "r_foot", 2: "l_foot"}
 # --- PWM actuation (servoActuation, PIC2) ----------------------------------------------------
 PWM_PERIOD_US = 20_000          # one tick of the Slave main loop
 PULSE_CENTER_US = 1500          # 0 degrees
-PULSE_US_PER_DEG = 10           # 600 us = -90 deg, 2400 us = +90 deg
-POS_MIN_DEG = -90               # limitPosition
-POS_MAX_DEG = 90
+PULSE_US_PER_DEG = 10           # 600 us = -90 deg, 2400 us = +90 deg (protocol.wire.POS_LIMIT_DEG)
 # The Slave generates the three pulses one after the other at the start of each period
 # (seed 000 fig. 10/12); while it does, it cannot answer CAN without disturbing the pulses
 # (seed 002 slide 29: jitter up to 2 ms).

@@ -1,10 +1,17 @@
 """Scenarios a user runs headless: ``humanoid-twin run stand|flexao|inclinar|levantar_perna``.
 
 A scenario is host code talking to the in-process twin through its pyserial URL, exactly as the
-MATLAB toolbox talked to the robot: boot (positions, period, PWM on: the Slaves calibrate), set the
-controllers, run the planner's motions with ``exe_traj``, let the robot settle. Meanwhile a
-:class:`humanoid_twin.monitor.Monitor` samples the plant's ground truth every 20 ms for the
-summary (docs/scenarios.md).
+MATLAB toolbox talked to the robot: :func:`boot` (positions, period, PWM on: the Slaves
+calibrate), set the controllers, run the planner's motions with ``exe_traj``, let the robot
+settle. Meanwhile a :class:`humanoid_twin.monitor.Monitor` samples the plant's ground truth every
+20 ms for the summary (docs/scenarios.md).
+
+The scenarios are a registry (:data:`REGISTRY`, in the style of dm_control's suite): one scenario
+is one small factory below, decorated with :func:`scenario`, that returns its :class:`Plan` (the
+planner's ``pos_apply``, ``k``, ``t`` of seed 000 table 23) from ``T``, ``motion`` and ``perna``.
+Adding a scenario is adding one factory here: the CLI's choices, :func:`plan` and :func:`run`
+read the registry. :func:`boot` is the one boot sequence (``run``, ``scripts/balance_study.py``
+and the tests' ``booted_twin`` fixture use it).
 """
 
 from __future__ import annotations
@@ -12,7 +19,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -22,16 +29,28 @@ from humanoid_twin.controllers import load_host_controller, run_host_controller
 from humanoid_twin.faults import FaultInjector, FaultSpec
 from humanoid_twin.host import drivers
 from humanoid_twin.host.motion import exe_traj, power_on, send_gains
-from humanoid_twin.host.planners import GAINS, LEG_SCUS, empty_plan, flexao, inclinar, levantar_perna
+from humanoid_twin.host.planners import (
+    LEG_SCUS,
+    control_row,
+    empty_plan,
+    flexao,
+    inclinar,
+    levantar_perna,
+    with_control,
+)
 from humanoid_twin.host.timebase import sleep as host_sleep
 from humanoid_twin.master.supervisor import ESTOP, SAFE, SupervisorConfig
 from humanoid_twin.monitor import Monitor
-from humanoid_twin.protocol.rs232 import ControlType
+from humanoid_twin.protocol.wire import ControlType
 from humanoid_twin.slave.laws import install_laws
 from humanoid_twin.twin import Twin
 
-SCENARIOS = ("stand", "flexao", "inclinar", "levantar_perna")
-CONTROL_CHOICES = {"none": 0, "locomotion": 1, "reaction": 2, "balance": 3}
+CONTROL_CHOICES: dict[str, int] = {
+    "none": ControlType.NO_CONTROL,
+    "locomotion": ControlType.LOCOMOTION_CONTROL,
+    "reaction": ControlType.REACTION_CONTROL,
+    "balance": ControlType.BALANCE_CONTROL,
+}
 BOOT_TIMEOUT_S = 5.0
 TILT_RATE_DEG_S = 1.0       # "the floor platform tilts slowly": 1 degree per second
 SETTLE_S = 2.0
@@ -43,6 +62,34 @@ class ScenarioError(RuntimeError):
 
 class ScenarioInputError(ScenarioError):
     """The options ask for something the run cannot do (a ``--duration`` shorter than the boot)."""
+
+
+class BootError(ScenarioError):
+    """:func:`boot` failed; ``port`` is the host end of the link, open (the run may go on)."""
+
+    def __init__(self, message: str, port: Any) -> None:
+        super().__init__(message)
+        self.port = port
+
+
+def boot(twin: Twin, timeout: float = BOOT_TIMEOUT_S) -> Any:
+    """The one boot sequence: open the host end of the twin's RS-232 link and ``power_on`` every
+    board (positions 0, movement period, PWM on; the Slaves calibrate). Returns the open port.
+    Attach whatever observes the run (monitor, recorder, CAN log, faults) before calling it.
+    :class:`BootError` (with the port) if a request fails."""
+    H = twin.open_port()
+    try:
+        power_on(H, timeout=timeout)
+    except drivers.CommError as exc:
+        raise BootError(f"the twin did not boot: {exc}", H) from exc
+    return H
+
+
+def hold(H: Any, plan: Plan, scus: tuple[int, ...] = LEG_SCUS) -> None:
+    """A scenario without motions: send the gains and control types of the plan's first motion
+    to the boards ``scus`` (``applycontrol``) and let the firmware hold the posture."""
+    for scu in scus:
+        send_gains(H, scu, plan.k[scu - 1, :, 0, :])
 
 
 @dataclass
@@ -86,19 +133,65 @@ class Plan:
     k: np.ndarray
     t: np.ndarray
 
-    def with_control(self, ctype: int) -> Plan:
+    def with_control(self, ctype: int, split: bool = False) -> Plan:
         """The same motions with every leg and hip board (SCU 1-4) on control type ``ctype``
-        (and that type's default gains): ``--control``."""
-        k = self.k.copy()
-        for row in range(len(LEG_SCUS)):
-            k[row, :, :, :3] = np.asarray(GAINS[ControlType(ctype)])[:, None, :]
-            k[row, :, :, 3] = ctype
+        (and that type's default gains): ``--control``. ``split`` (the scenarios that keep both
+        feet down, ``Scenario.double_support``: stand, flexao, inclinar): for REACTION and BALANCE
+        the two legs get the leader/follower pair of :data:`STAND_GAINS` instead of the same law,
+        which would make them fight through the pelvis (docs/balance.md 2.2)."""
+        k = with_control(self.k, ctype)
+        if split and ctype in (ControlType.REACTION_CONTROL, ControlType.BALANCE_CONTROL):
+            for scu, gains in STAND_GAINS.items():
+                k[scu - 1] = control_row(ctype, gains)[:, None, :]
         return Plan(self.pos_apply, k, self.t)
 
 
-# Default planner arguments per scenario (``--T``, ``--motion``).
-DEFAULT_T_S = 1.0
-DEFAULT_MOTION_DEG = {"flexao": 20.0, "inclinar": 10.0, "levantar_perna": 40.0}
+Factory = Callable[[float | None, float | None, int], Plan]
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """One registered scenario: its name, its factory ``(T, motion, perna) -> Plan`` (``None``
+    = the scenario's default), and whether it moves (``exe_traj`` the plan's motions) or holds
+    the boot posture with the plan's gains (:func:`hold`); ``double_support``: both feet stay
+    down all along (``--control reaction|balance`` keeps the leader/follower split)."""
+
+    name: str
+    factory: Factory
+    moves: bool = True
+    double_support: bool = False
+    doc: str = field(default="", compare=False)
+
+    def plan(self, T: float | None = None, motion: float | None = None, perna: int = 1) -> Plan:
+        """The scenario's plan with its defaults for the arguments left ``None``."""
+        return self.factory(T, motion, perna)
+
+
+REGISTRY: dict[str, Scenario] = {}
+
+
+def scenario(name: str, *, moves: bool = True, double_support: bool = False) -> Callable[[Factory], Factory]:
+    """Register the decorated factory ``(T, motion, perna) -> Plan`` as scenario ``name``."""
+
+    def register(factory: Factory) -> Factory:
+        if name in REGISTRY:
+            raise ValueError(f"scenario {name!r} is registered twice")
+        doc = (factory.__doc__ or "").strip().splitlines()
+        REGISTRY[name] = Scenario(name, factory, moves, double_support, doc[0] if doc else "")
+        return factory
+
+    return register
+
+
+def get_scenario(name: str) -> Scenario:
+    """The registered scenario ``name``; :class:`ScenarioError` naming the choices otherwise."""
+    try:
+        return REGISTRY[name]
+    except KeyError:
+        raise ScenarioError(f"unknown scenario {name!r} (choose from {', '.join(REGISTRY)})") from None
+
+
+DEFAULT_T_S = 1.0           # the planners' default motion period (``--T``)
 # ``stand``: the vertical posture, both feet down, BALANCE_CONTROL on the leg boards and
 # LOCOMOTION_CONTROL on the hips. In double support the two legs must not run the same law
 # (they fight through the pelvis, docs/balance.md): the right leg leads (its foot front joint
@@ -112,29 +205,47 @@ STAND_CONTROL = {1: ControlType.BALANCE_CONTROL, 2: ControlType.BALANCE_CONTROL,
                  3: ControlType.LOCOMOTION_CONTROL, 4: ControlType.LOCOMOTION_CONTROL}
 STAND_LEAD_KP, STAND_FOLLOW_KP, STAND_KD = 1, -8, 2
 STAND_GAINS: dict[int, tuple[tuple[int, int, int], ...]] = {
-    1: ((0, 0, 0), (0, STAND_LEAD_KP & 0xFF, STAND_KD), (0, 0, 0)),
-    2: ((0, 0, 0), (0, STAND_FOLLOW_KP & 0xFF, STAND_KD), (0, 0, 0)),
+    1: ((0, 0, 0), (0, STAND_LEAD_KP, STAND_KD), (0, 0, 0)),
+    2: ((0, 0, 0), (0, STAND_FOLLOW_KP, STAND_KD), (0, 0, 0)),
 }
 
 
+@scenario("stand", moves=False, double_support=True)
+def _stand(T: float | None, motion: float | None, perna: int) -> Plan:
+    """vertical posture: leader/follower balance on the legs, LOCOMOTION on the hips"""
+    pos, k, t = empty_plan(1)
+    for scu, ctype in STAND_CONTROL.items():
+        k[scu - 1, :, 0] = control_row(ctype, STAND_GAINS.get(scu))
+    t[0] = DEFAULT_T_S
+    return Plan(pos, k, t)
+
+
+@scenario("flexao", double_support=True)
+def _flexao(T: float | None, motion: float | None, perna: int) -> Plan:
+    """both legs bend (table 22); motion = ankle bend, default 20 deg"""
+    return Plan(*flexao(DEFAULT_T_S if T is None else T, 20.0 if motion is None else motion))
+
+
+@scenario("inclinar", double_support=True)
+def _inclinar(T: float | None, motion: float | None, perna: int) -> Plan:
+    """both legs lean sideways (table 22); motion = foot lateral angle, default 10 deg"""
+    return Plan(*inclinar(DEFAULT_T_S if T is None else T, 10.0 if motion is None else motion))
+
+
+@scenario("levantar_perna")
+def _levantar_perna(T: float | None, motion: float | None, perna: int) -> Plan:
+    """lift a leg (table 22); motion = knee angle, default 40 deg; perna 1 right, 2 left"""
+    knee = 40.0 if motion is None else motion
+    return Plan(*levantar_perna(DEFAULT_T_S if T is None else T, knee, perna))
+
+
+SCENARIOS: tuple[str, ...] = tuple(REGISTRY)   # the CLI's choices, in registration order
+DOUBLE_SUPPORT_SCENARIOS: tuple[str, ...] = tuple(n for n, s in REGISTRY.items() if s.double_support)
+
+
 def plan(scenario: str, T: float | None = None, motion: float | None = None, perna: int = 1) -> Plan:
-    """The planner call of a scenario with its defaults."""
-    if scenario not in SCENARIOS:
-        raise ScenarioError(f"unknown scenario {scenario!r} (choose from {', '.join(SCENARIOS)})")
-    if scenario == "stand":
-        pos, k, t = empty_plan(1)
-        for scu, ctype in STAND_CONTROL.items():
-            k[scu - 1, :, 0, :3] = STAND_GAINS.get(scu, GAINS[ctype])
-            k[scu - 1, :, 0, 3] = int(ctype)
-        t[0] = DEFAULT_T_S
-        return Plan(pos, k, t)
-    period = DEFAULT_T_S if T is None else T
-    amount = DEFAULT_MOTION_DEG[scenario] if motion is None else motion
-    if scenario == "flexao":
-        return Plan(*flexao(period, amount))
-    if scenario == "inclinar":
-        return Plan(*inclinar(period, amount))
-    return Plan(*levantar_perna(period, amount, perna))
+    """The plan of the registered scenario ``scenario`` with its defaults."""
+    return get_scenario(scenario).plan(T, motion, perna)
 
 
 def tilt_profile(
@@ -153,8 +264,7 @@ def tilt_profile(
 
 def run(opts: RunOptions, on_progress: Callable[[float, float], None] | None = None) -> dict[str, Any]:
     """Run one scenario headless and return the SPEC.md section 6 summary."""
-    if opts.scenario not in SCENARIOS:
-        raise ScenarioError(f"unknown scenario {opts.scenario!r} (choose from {', '.join(SCENARIOS)})")
+    spec = get_scenario(opts.scenario)
     twin = Twin(seed=opts.seed, can_interface=opts.can_interface, can_channel=opts.can_channel,
                 supervisor=opts.supervisor)
     sup = twin.master.supervisor
@@ -186,22 +296,22 @@ def run(opts: RunOptions, on_progress: Callable[[float, float], None] | None = N
             injector.listeners.append(
                 lambda t, what, spec: rec_.log_event(t, f"injected {spec.text}: {what}", "WARN"))
         injector.install()
-        H = twin.open_port()
         try:
-            power_on(H, timeout=BOOT_TIMEOUT_S)
-        except drivers.CommError as exc:
+            H = boot(twin)
+        except BootError as exc:
             if not stopped() and not opts.faults:
-                raise ScenarioError(f"the twin did not boot: {exc}") from exc
-            host_error = f"boot: {exc}"     # the supervisor stopped the boot: the run goes on
+                raise
+            H = exc.port
+            host_error = f"boot: {exc.__cause__}"     # the supervisor stopped the boot: the run goes on
         boot_s = twin.now_s
         if opts.duration is not None and opts.duration < boot_s:
             raise ScenarioInputError(
                 f"--duration {opts.duration:g} is shorter than the boot ({boot_s:.3f} simulated seconds "
                 "from power-on): give at least that")
-        the_plan = plan(opts.scenario, T=opts.T, motion=opts.motion, perna=opts.perna)
+        the_plan = spec.plan(opts.T, opts.motion, opts.perna)
         if opts.control is not None:
-            the_plan = the_plan.with_control(CONTROL_CHOICES[opts.control])
-        motion_s = 0.0 if opts.scenario == "stand" else float(np.sum(the_plan.t))
+            the_plan = the_plan.with_control(CONTROL_CHOICES[opts.control], split=spec.double_support)
+        motion_s = float(np.sum(the_plan.t)) if spec.moves else 0.0
         tilt_s = abs(opts.tilt) / TILT_RATE_DEG_S
         duration = opts.duration
         if duration is None:
@@ -213,9 +323,8 @@ def run(opts: RunOptions, on_progress: Callable[[float, float], None] | None = N
         try:
             if host_error is not None:
                 pass
-            elif opts.scenario == "stand":
-                for scu in LEG_SCUS:
-                    send_gains(H, scu, the_plan.k[scu - 1, :, 0, :])
+            elif not spec.moves:
+                hold(H, the_plan)
             elif duration > twin.now_s:
                 exe_traj(H, the_plan.t, the_plan.pos_apply, 0.0, k=the_plan.k)
         except drivers.CommError as exc:
@@ -290,5 +399,6 @@ def _finite(x: float) -> float | None:
     return round(max(x, NO_SUPPORT_MARGIN_MM), 3)
 
 
-__all__ = ["RunOptions", "Monitor", "Plan", "ScenarioError", "ScenarioInputError", "SCENARIOS",
-           "CONTROL_CHOICES", "plan", "run", "tilt_profile"]
+__all__ = ["RunOptions", "Monitor", "Plan", "Scenario", "REGISTRY", "scenario", "get_scenario", "boot",
+           "hold", "BootError", "ScenarioError", "ScenarioInputError", "SCENARIOS", "CONTROL_CHOICES", "plan",
+           "run", "tilt_profile"]

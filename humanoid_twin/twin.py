@@ -19,10 +19,11 @@ from humanoid_twin.bus.network import CanNetwork
 from humanoid_twin.bus.protocol_twin import register_link, unregister_link
 from humanoid_twin.bus.serial_link import SerialLink
 from humanoid_twin.clock import US_PER_S, Clock, RealTimePacer
-from humanoid_twin.hardware import N_SCU, PWM_PERIOD_US
+from humanoid_twin.hardware import PWM_PERIOD_US
 from humanoid_twin.master.master import Master
 from humanoid_twin.master.supervisor import SupervisorConfig
 from humanoid_twin.plant import Plant
+from humanoid_twin.protocol.wire import LINE_SETTINGS, N_SCU, SCUS
 from humanoid_twin.slave.slave import Slave
 
 _names = itertools.count()
@@ -50,10 +51,10 @@ class Twin:
         self.master = Master(self.clock, self.network, self.link, supervisor)
         # Slave PWM periods are not synchronised on the robot: each board starts its 20 ms
         # period at its own phase, drawn from the seed (docs/firmware.md).
-        self.phases_us: dict[int, int] = dict(zip(range(1, N_SCU + 1), _phases(seed), strict=True))
+        self.phases_us: dict[int, int] = dict(zip(SCUS, _phases(seed), strict=True))
         self.slaves: dict[int, Slave] = {
-            scu: Slave(scu, self.clock, self.plant, self.network, phase_us=self.phases_us[scu], seed=seed)
-            for scu in range(1, N_SCU + 1)
+            scu: Slave(scu, self.clock, self.plant, self.network, phase_us=self.phases_us[scu])
+            for scu in SCUS
         }
         self.name = name or f"twin{next(_names)}"
         self.url = f"twin://{self.name}"
@@ -90,9 +91,7 @@ class Twin:
     # -- host side ----------------------------------------------------------------------
     def open_port(self, timeout: float = 0.2) -> serial.Serial:
         """Open the host end of the RS-232 link, as pyserial sees a real port (115200 8E1)."""
-        return serial.serial_for_url(
-            self.url, baudrate=115200, bytesize=8, parity=serial.PARITY_EVEN, stopbits=1, timeout=timeout
-        )
+        return serial.serial_for_url(self.url, timeout=timeout, **LINE_SETTINGS)
 
     def close(self) -> None:
         """Detach the link from the URL registry and shut the CAN buses down."""

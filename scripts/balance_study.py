@@ -36,14 +36,21 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
-from humanoid_twin.host.motion import power_on, send_gains
-from humanoid_twin.host.planners import GAINS
+from humanoid_twin.host.planners import control_row
 from humanoid_twin.host.timebase import sleep as host_sleep
 from humanoid_twin.monitor import Monitor
-from humanoid_twin.protocol.rs232 import ControlType
-from humanoid_twin.scenarios import SETTLE_S, STAND_KD, STAND_LEAD_KP, TILT_RATE_DEG_S, tilt_profile
+from humanoid_twin.protocol.wire import ControlType
+from humanoid_twin.scenarios import (
+    SETTLE_S,
+    STAND_KD,
+    STAND_LEAD_KP,
+    TILT_RATE_DEG_S,
+    Plan,
+    boot,
+    hold,
+    plan,
+    tilt_profile,
+)
 from humanoid_twin.sweep import Point, run_sweep
 from humanoid_twin.twin import Twin
 
@@ -67,26 +74,20 @@ class Gain:
         return f"{self.kp}/2^{self.kd}" if self.kd else f"{self.kp}"
 
 
-def _byte(v: int) -> int:
-    return int(v) & 0xFF
-
-
-def stand_gains(ctype: ControlType, g: Gain) -> np.ndarray:
-    """k rows of SCUs 1-4 (``[KI, KP, KD, type]`` per servo) of a double-support stand with
-    leader (right leg) / follower (left leg) balance gains ``g`` on the foot front joint only
-    (ankle roll and knee gains 0, docs/balance.md)."""
-    k = np.zeros((4, 3, 4))
+def stand_plan(ctype: ControlType, g: Gain) -> Plan:
+    """The ``stand`` scenario's plan with leader (right leg) / follower (left leg) balance gains
+    ``g`` on the foot front joint only (ankle roll and knee gains 0, docs/balance.md), hips on
+    LOCOMOTION; with NO_CONTROL every leg and hip board is off."""
+    p = plan("stand")
+    k = p.k.copy()
     if ctype == ControlType.NO_CONTROL:
-        return k
-    lead = (0, g.kp, 0)
-    follow = (0, -FOLLOW_RATIO * g.kp, 0)
-    for row, kps in ((0, lead), (1, follow)):
-        for i in range(3):
-            k[row, i] = (0, _byte(kps[i]), g.kd, int(ctype))
-    for row in (2, 3):   # hips: LOCOMOTION
-        k[row, :, :3] = GAINS[ControlType.LOCOMOTION_CONTROL]
-        k[row, :, 3] = int(ControlType.LOCOMOTION_CONTROL)
-    return k
+        k[:4, :, 0] = 0
+        return Plan(p.pos_apply, k, p.t)
+    for scu, kp in ((1, g.kp), (2, -FOLLOW_RATIO * g.kp)):
+        k[scu - 1, :, 0] = control_row(ctype, ((0, 0, g.kd), (0, kp, g.kd), (0, 0, g.kd)))
+    for scu in (3, 4):
+        k[scu - 1, :, 0] = control_row(ControlType.LOCOMOTION_CONTROL)
+    return Plan(p.pos_apply, k, p.t)
 
 
 def run_stand(ctype: ControlType, g: Gain | None, tilt: float, seed: int = 0) -> dict[str, Any]:
@@ -95,14 +96,11 @@ def run_stand(ctype: ControlType, g: Gain | None, tilt: float, seed: int = 0) ->
     try:
         monitor = Monitor(twin)
         monitor.attach()
-        H = twin.open_port()
-        power_on(H, timeout=5.0)
-        boot = twin.now_s
-        k = stand_gains(ctype, g or Gain(0, 0))
-        for scu in (1, 2, 3, 4):
-            send_gains(H, scu, k[scu - 1])
-        twin.plant.set_tilt_profile(tilt_profile(tilt, boot))
-        host_sleep(H, boot + abs(tilt) / TILT_RATE_DEG_S + SETTLE_S - twin.now_s)
+        H = boot(twin)
+        boot_s = twin.now_s
+        hold(H, stand_plan(ctype, g or Gain(0, 0)))
+        twin.plant.set_tilt_profile(tilt_profile(tilt, boot_s))
+        host_sleep(H, boot_s + abs(tilt) / TILT_RATE_DEG_S + SETTLE_S - twin.now_s)
         margin = monitor.cop_margin_min_mm
         return {
             "fell": monitor.fell,

@@ -26,8 +26,8 @@ from pathlib import Path
 import mujoco
 
 from humanoid_twin.clock import US_PER_S
-from humanoid_twin.hardware import N_SCU
 from humanoid_twin.plant import Plant
+from humanoid_twin.protocol.wire import N_SCU
 from humanoid_twin.scenarios import RunOptions, run
 
 

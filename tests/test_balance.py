@@ -23,12 +23,12 @@ import pytest
 from humanoid_twin import scenarios
 from humanoid_twin.hardware import FORCE_SENSOR_XY_MM
 from humanoid_twin.host.drivers import SupervisorRefused
-from humanoid_twin.host.motion import exe_traj, power_on
+from humanoid_twin.host.motion import exe_traj
 from humanoid_twin.host.planners import GAINS, HOLD, L_LEG, levantar_perna
 from humanoid_twin.host.timebase import sleep as host_sleep
 from humanoid_twin.monitor import Monitor
 from humanoid_twin.protocol.rs232 import ControlType
-from humanoid_twin.scenarios import RunOptions, run
+from humanoid_twin.scenarios import RunOptions, boot, run
 from humanoid_twin.slave import servo as sv
 from humanoid_twin.slave.data import jacobianMatrix
 from humanoid_twin.slave.database import Global
@@ -104,13 +104,25 @@ def test_without_control_the_robot_stands_small_tilts_only():
     assert failed(s), s
 
 
-def test_the_same_law_on_both_legs_in_double_support_falls():
+def test_the_same_law_on_both_legs_in_double_support_falls(monkeypatch):
     """The double-support finding (docs/firmware.md, docs/balance.md): both feet on the leader's
-    law fight through the pelvis; the leader/follower pair does not."""
+    law fight through the pelvis; the leader/follower pair does not. (The split switched off:
+    ``--control balance`` without it is the old override.)"""
+    raw = scenarios.Plan.with_control
+    monkeypatch.setattr(scenarios.Plan, "with_control", lambda self, ctype, split=False: raw(self, ctype))
     same = run(RunOptions("stand", tilt=8.0, control="balance", progress=False))
     assert same["fell"], same
+    monkeypatch.undo()
     pair = run(RunOptions("stand", tilt=8.0, progress=False))
     assert stood(pair, 30.0), pair
+
+
+@pytest.mark.parametrize("control", ["balance", "reaction"])
+def test_the_control_override_keeps_the_leader_follower_split_and_holds_20_deg(control):
+    """``stand --control balance|reaction --tilt 20``: the override keeps the split (issue 12)."""
+    s = run(RunOptions("stand", tilt=20.0, control=control, progress=False))
+    check_summary(s)
+    assert stood(s, 20.0), s
 
 
 # ---------------------------------------------------------------------------------------------
@@ -128,11 +140,10 @@ def _one_leg(pos: np.ndarray, k: np.ndarray, t: np.ndarray, seed: int) -> Verdic
     try:
         mon = Monitor(twin)
         mon.attach()
-        H = twin.open_port()
-        power_on(H, timeout=5.0)
-        boot = twin.now_s
+        H = boot(twin)
+        boot_s = twin.now_s
         T = float(t[0])
-        hold = (boot + HOLD * T + 0.2, boot + (HOLD + 1) * T)
+        hold = (boot_s + HOLD * T + 0.2, boot_s + (HOLD + 1) * T)
         obs = {"lifted_max_n": 0.0, "support_margin_min_mm": math.inf, "samples": 0}
 
         def sample() -> None:

@@ -99,10 +99,12 @@ def test_a_successful_run_replaces_the_old_file(tmp_path):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["f.db", "old.rrd"]
 
 
-@pytest.mark.parametrize("sig, code", [(signal.SIGTERM, 143), (signal.SIGINT, 130)], ids=["SIGTERM", "SIGINT"])
+@pytest.mark.parametrize("sig, code", [(signal.SIGTERM, 143), (signal.SIGINT, 130)],
+                         ids=["SIGTERM", "SIGINT"])
 def test_signal_mid_run_closes_the_recording_and_the_can_log(sig, code, tmp_path):
-    proc = subprocess.Popen([*EXE, "run", "stand", "--duration", "600", "--out", "s.rrd", "--can-log", "s.asc"],
-                            cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+    args = ["run", "stand", "--duration", "600", "--out", "s.rrd", "--can-log", "s.asc"]
+    proc = subprocess.Popen([*EXE, *args], cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True,
                             preexec_fn=_default_signals)
     try:
         buf = ""

@@ -106,3 +106,39 @@ def test_bad_law_options_are_usage_errors_before_anything_is_written(user_pkg, c
         err = capsys.readouterr().err
         assert len(err.strip().splitlines()) == 1 and msg in err, err
         assert not out.exists()
+
+
+REPO = Path(__file__).resolve().parents[1]
+
+
+def test_the_host_controller_example_holds_a_tilt_that_open_loop_does_not(capsys, monkeypatch):
+    """examples/host_ankle_loop.py through --host-controller: the firmware laws off, the PC's
+    loop over the serial toolbox holds 20 deg; the same run without it falls (13 deg is the
+    limit without control, docs/balance.md)."""
+    monkeypatch.chdir(REPO)
+    code, off, _ = _run(capsys, "stand", "--control", "none", "--tilt", "20")
+    assert off["fell"], off
+    code, on, _ = _run(capsys, "stand", "--control", "none", "--tilt", "20",
+                       "--host-controller", "examples.host_ankle_loop:step", "--host-period-ms", "20")
+    assert code == 0 and not on["fell"] and on["cop_margin_min_mm"] > 15, on
+    assert on["host_controller_calls"] == pytest.approx((on["duration_s"] - on["boot_s"]) / 0.02, abs=3)
+
+
+def test_the_firmware_law_example_holds_a_tilt(capsys, monkeypatch):
+    """examples/cop_pd_law.py through --law: the plug-in runs on both leg boards (its own
+    margin, not the built-in law's) and the robot stands a 20 deg tilt."""
+    monkeypatch.chdir(REPO)
+    code, builtin, _ = _run(capsys, "stand", "--tilt", "20")
+    code, s, _ = _run(capsys, "stand", "--tilt", "20", "--law", "balance=examples.cop_pd_law:CopPD")
+    assert code == 0 and not s["fell"] and s["cop_margin_min_mm"] > 20 and "law_faults" not in s, s
+    assert s["cop_margin_min_mm"] != builtin["cop_margin_min_mm"]
+
+
+def test_a_host_controller_that_raises_is_named(capsys, monkeypatch, tmp_path):
+    (tmp_path / "ctl_bad_host.py").write_text("def step(ctx):\n    raise KeyError('oops')\n")
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.syspath_prepend(str(tmp_path))
+    code = main(["run", "stand", "--duration", "3", "--no-record", "--no-progress",
+                 "--host-controller", "ctl_bad_host:step"])
+    err = capsys.readouterr().err
+    assert code == 1 and "host controller ctl_bad_host:step raised KeyError" in err, err

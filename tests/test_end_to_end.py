@@ -17,11 +17,13 @@ import numpy as np
 import pytest
 
 from humanoid_twin.bus.frames import frame_bits
-from humanoid_twin.hardware import N_SCU, PWM_BUSY_US, PWM_PERIOD_US
+from humanoid_twin.hardware import PWM_BUSY_US, PWM_PERIOD_US
 from humanoid_twin.host.motion import exe_traj, power_on
 from humanoid_twin.host.planners import flexao
 from humanoid_twin.protocol.canframes import OP_ACTUATION, OP_SENSORS, can_id, load_dbc, split_id
+from humanoid_twin.protocol.wire import N_SCU
 from humanoid_twin.recording.can_log import CanLog
+from humanoid_twin.scenarios import boot
 from humanoid_twin.twin import Twin
 
 SLOT_US = 250
@@ -35,8 +37,7 @@ def logged_run(tmp_path_factory):
     path = tmp_path_factory.mktemp("canlog") / "boot.asc"
     twin = Twin(seed=5)
     log = CanLog(path, twin.network)
-    H = twin.open_port()
-    power_on(H)
+    boot(twin)
     twin.run_for(0.5)
     log.close()
     phases = dict(twin.phases_us)

@@ -11,10 +11,9 @@ import pytest
 
 from humanoid_twin.faults import FaultInjector, FaultSpecError, parse_fault
 from humanoid_twin.host import drivers
-from humanoid_twin.host.motion import power_on
 from humanoid_twin.master.supervisor import SupervisorConfig
 from humanoid_twin.protocol.canframes import SFLAGS_WATCHDOG
-from humanoid_twin.scenarios import RunOptions, run
+from humanoid_twin.scenarios import RunOptions, boot, run
 from humanoid_twin.twin import Twin
 
 BOOT_S = 2.7          # the boot (PWM on, calibration) ends at ~2.65 s simulated
@@ -110,9 +109,7 @@ def test_host_link_is_off_by_default_and_latches_when_configured() -> None:
 def _booted(*specs: str, seed: int = 0) -> tuple[Twin, object]:
     twin = Twin(seed=seed)
     FaultInjector(twin, [parse_fault(s) for s in specs], seed).install()
-    H = twin.open_port()
-    power_on(H)
-    return twin, H
+    return twin, boot(twin)
 
 
 def _forces(H, twin: Twin, n: int = 10) -> list[tuple[int, ...]]:

@@ -45,21 +45,6 @@ from humanoid_twin.protocol.rs232 import TEST_MESSAGE, bcc
 from humanoid_twin.twin import Twin
 
 
-@pytest.fixture
-def twin():
-    tw = Twin(seed=0)
-    yield tw
-    tw.close()
-
-
-@pytest.fixture
-def powered(twin):
-    """A twin whose Slaves have PWM on and are calibrated, and its port."""
-    H = twin.open_port()
-    power_on(H)
-    return twin, H
-
-
 def truth_log(tw: Twin, period_us: int = 20_000) -> list:
     log: list = []
     tw.every(period_us, lambda: log.append(tw.plant.truth()))
@@ -105,8 +90,8 @@ def test_an_invalid_request_gives_the_FC_error_code_without_retrying(twin, call)
         robot.set_positions(0, [0, 0, 0])
 
 
-def test_readjoint_after_a_move_reads_where_the_servos_went(powered):
-    tw, H = powered
+def test_readjoint_after_a_move_reads_where_the_servos_went(booted_twin):
+    tw, H = booted_twin
     target = [30, -20, 45]                              # right arm: harmless for the stance
     assert applyjoint(H, 6, 1, [25, 25, 25]).error == 0  # 0.5 s
     assert applyjoint(H, 6, 0, target).error == 0
@@ -125,8 +110,8 @@ def test_readjoint_after_a_move_reads_where_the_servos_went(powered):
     assert vel.servos == (0, 0, 0)                      # at rest
 
 
-def test_readspecial_and_readcanstat_on_a_standing_robot(powered):
-    tw, H = powered
+def test_readspecial_and_readcanstat_on_a_standing_robot(booted_twin):
+    tw, H = booted_twin
     sleep(H, 0.1)
     for scu in (1, 2):
         r = readspecial(H, scu)
@@ -179,8 +164,8 @@ def test_a_swallowed_first_frame_is_retried_and_counted(twin):
     assert r.error == ErrorCode.OK and r.tries == 2 and r.servos == (0, 0, 0)
 
 
-def test_serial_noise_costs_retries_but_never_wrong_data(powered):
-    tw, H = powered
+def test_serial_noise_costs_retries_but_never_wrong_data(booted_twin):
+    tw, H = booted_twin
     clean = readjoint(H, 6, 0).servos
     tw.link.set_noise(0.03, seed=7)                        # ~30 % of the exchanges hit
     results = [readjoint(H, 6, 0, max_tries=6) for _ in range(40)]
@@ -222,8 +207,8 @@ def test_a_silent_line_times_out_after_max_tries_on_a_tcp_port():
         srv.close()
 
 
-def test_humanoid_client_speaks_for_the_drivers(powered):
-    tw, H = powered
+def test_humanoid_client_speaks_for_the_drivers(booted_twin):
+    tw, H = booted_twin
     killcom(H)                                  # a serial port has one host end
     with HumanoidClient(tw.url) as robot:
         assert robot.test() == TEST_MESSAGE
@@ -246,8 +231,8 @@ def check_traj(d, n_test: int):
     assert not np.any(np.isnan(d.position))
 
 
-def test_flexao_through_exe_traj_bends_both_legs_with_flat_feet(powered):
-    tw, H = powered
+def test_flexao_through_exe_traj_bends_both_legs_with_flat_feet(booted_twin):
+    tw, H = booted_twin
     pos, k, t = flexao(1.0, 20)
     log = truth_log(tw)
     d = exe_traj(H, t, pos, 1.0, k)
@@ -272,8 +257,8 @@ def test_flexao_through_exe_traj_bends_both_legs_with_flat_feet(powered):
         assert np.all(g.pad_forces_n[foot] > 1.0)
 
 
-def test_inclinar_through_exe_traj_moves_the_body_sideways(powered):
-    tw, H = powered
+def test_inclinar_through_exe_traj_moves_the_body_sideways(booted_twin):
+    tw, H = booted_twin
     pos, k, t = inclinar(1.0, 10)
     log = truth_log(tw)
     com0 = tw.plant.truth().com
@@ -288,8 +273,8 @@ def test_inclinar_through_exe_traj_moves_the_body_sideways(powered):
     assert max(x.trunk_tilt_deg for x in log) < 3
 
 
-def test_levantar_perna_through_exe_traj_lifts_the_right_foot_and_stands(powered):
-    tw, H = powered
+def test_levantar_perna_through_exe_traj_lifts_the_right_foot_and_stands(booted_twin):
+    tw, H = booted_twin
     pos, k, t = levantar_perna(1.0, 50, 1)
     log = truth_log(tw, 50_000)
     t0 = now(H)
@@ -311,8 +296,8 @@ def test_levantar_perna_through_exe_traj_lifts_the_right_foot_and_stands(powered
     assert np.abs(d.position[:4, :, -1]).max() <= 2
 
 
-def test_recycle_brings_the_legs_back_to_vertical(powered):
-    tw, H = powered
+def test_recycle_brings_the_legs_back_to_vertical(booted_twin):
+    tw, H = booted_twin
     pos, k, t = flexao(0.6, 15)
     exe_traj(H, t, pos, 0.2, k)
     t0 = now(H)
@@ -326,8 +311,8 @@ def test_recycle_brings_the_legs_back_to_vertical(powered):
 
 # --- one unit and the feet (tables 21, 27) ------------------------------------------------------
 
-def test_sample_traj3_and_sample_traj_columns_follow_the_manual(powered):
-    tw, H = powered
+def test_sample_traj3_and_sample_traj_columns_follow_the_manual(booted_twin):
+    tw, H = booted_twin
     k = [[1, 0, 0]] * 3
     a3 = sample_traj3(H, 1.0, [0, 0, 0], [30, -30, 20], k, Textra=0.4, settle=0.2)
     assert a3.shape[1] == 16
@@ -346,8 +331,8 @@ def test_sample_traj3_and_sample_traj_columns_follow_the_manual(powered):
     assert np.all((a1[:, 3] >= 0) & (a1[:, 3] <= 100))
 
 
-def test_cop_acquire_and_calccop_agree_with_the_ground_truth(powered):
-    tw, H = powered
+def test_cop_acquire_and_calccop_agree_with_the_ground_truth(booted_twin):
+    tw, H = booted_twin
     pos, k, t = inclinar(1.0, 8)
     exe_traj(H, t, pos, 0.5, k)
     log = truth_log(tw)
@@ -362,10 +347,10 @@ def test_cop_acquire_and_calccop_agree_with_the_ground_truth(powered):
     assert np.allclose(calccop(data.reaction), data.CoP, equal_nan=True)
 
 
-def test_cop_realtime_writes_a_recording_when_headless(powered, tmp_path):
+def test_cop_realtime_writes_a_recording_when_headless(booted_twin, tmp_path):
     from rerun.chunk import RrdReader
 
-    tw, H = powered
+    tw, H = booted_twin
     path = tmp_path / "cop.rrd"
     data = cop_realtime(H, 2, 0.4, mode="save", path=path, chunk=7)
     assert data.time.shape[0] >= 15
@@ -378,7 +363,7 @@ def test_cop_realtime_writes_a_recording_when_headless(powered, tmp_path):
     assert rows["forces/rear-right"] == data.time.shape[0]
 
 
-def test_nothing_in_the_drivers_needs_the_in_process_port(powered):
+def test_nothing_in_the_drivers_needs_the_in_process_port(booted_twin):
     """A plain pyserial loop:// port has no virtual clock: the time base falls back to the wall
     clock and the drivers run (and fail cleanly) without any twin attribute."""
     port = serial.serial_for_url("loop://", timeout=0.01)

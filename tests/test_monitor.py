@@ -6,9 +6,9 @@ from __future__ import annotations
 import math
 
 from humanoid_twin import scenarios
-from humanoid_twin.host.motion import power_on
 from humanoid_twin.host.timebase import sleep as host_sleep
 from humanoid_twin.monitor import Monitor
+from humanoid_twin.scenarios import boot
 from humanoid_twin.twin import Twin
 
 
@@ -24,8 +24,7 @@ def test_monitor_sees_a_limp_robot_fall_and_a_booted_one_stand():
     with Twin(seed=0) as twin:
         mon = Monitor(twin)
         mon.attach()
-        H = twin.open_port()
-        power_on(H, timeout=5.0)
+        H = boot(twin)
         mon2 = Monitor(twin, start_s=twin.now_s)
         mon2.attach()
         host_sleep(H, 0.5)

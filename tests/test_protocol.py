@@ -8,6 +8,7 @@ import itertools
 from pathlib import Path
 
 import can
+import numpy as np
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
@@ -550,3 +551,37 @@ def test_dbc_decodes_sensors2(db, k, curr, data4) -> None:
     assert [sig[f"Curr{i}"] for i in (1, 2, 3)] == list(curr)
     assert [sig[f"Data{i}"] for i in (1, 2, 3, 4)] == list(data4)
     assert db.encode_message(cf.SENSOR_IDS[k][1], sig) == data
+
+
+# --- protocol/wire.py: the shared facts, once -----------------------------------------------------
+def test_check_scu_takes_1_to_8_and_names_what_was_wrong():
+    from humanoid_twin.protocol.wire import SCUS, check_scu
+
+    assert [check_scu(s) for s in SCUS] == list(range(1, 9))
+    assert type(check_scu(np.int64(3))) is int
+    for bad, why in ((0, "1..8, got 0"), (9, "1..8, got 9"), (True, "integer 1..8"), ("1", "integer 1..8")):
+        with pytest.raises(ValueError, match=why):
+            check_scu(bad, "scuid")
+    reason = rs232.invalid_reason(rs232.Request(rs232.Op.READ_SENSORS, 9, 0))
+    assert reason == "SCU address must be 1..8, got 9"
+
+
+def test_error_states_name_the_bus_states_and_carry_the_wire_codes():
+    from humanoid_twin.bus.confinement import BUS_OFF, ERROR_ACTIVE, ERROR_PASSIVE, ERROR_STATE_CODE
+    from humanoid_twin.protocol.wire import ErrorState
+
+    assert [ErrorState.from_label(x) for x in (ERROR_ACTIVE, ERROR_PASSIVE, BUS_OFF)] == [0, 1, 2]
+    assert ERROR_STATE_CODE == {"error-active": 0, "error-passive": 1, "bus-off": 2}
+    assert ErrorState.BUS_OFF.label == "bus-off"
+
+
+def test_control_and_status_bits_are_the_codecs_bits():
+    from humanoid_twin.protocol import wire
+
+    ct = wire.ControlType
+    b = cf.control_byte(True, True, (ct.BALANCE_CONTROL, 0, ct.LOCOMOTION_CONTROL))
+    assert b == wire.CONTROL_PWM | wire.CONTROL_CALIB | (1 << 4) | 3
+    st = cf.status_byte(True, False, True, False, True, (True, False, True))
+    assert st == (wire.STATUS_PWM | wire.STATUS_DEADLINE | wire.STATUS_ONE_FINISHED
+                  | wire.STATUS_FINISHED[0] | wire.STATUS_FINISHED[2])
+    assert cf.parse_status_byte(st) == (True, False, True, False, True, (True, False, True))

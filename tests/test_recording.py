@@ -14,8 +14,9 @@ import can
 import numpy as np
 import pytest
 
-from humanoid_twin.hardware import N_SCU, N_SERVOS
+from humanoid_twin.hardware import N_SERVOS
 from humanoid_twin.protocol import canframes, rs232
+from humanoid_twin.protocol.wire import N_SCU
 from humanoid_twin.recording import (
     CanLog,
     CanLogError,
@@ -289,20 +290,19 @@ def test_real_ctrl_c_and_forgotten_close_leave_readable_files(tmp_path):
     assert len(t) >= 16 and np.all(np.diff(t) == pytest.approx(0.02))     # every row up to the stop
 
 
-def test_recorder_rejects_bad_input(tmp_path):
-    with Twin(seed=0) as twin:
-        with pytest.raises(ValueError, match=r"\.rrd"):
-            Recorder(tmp_path / "run.txt", twin)
-        with pytest.raises(FileNotFoundError, match="does not exist"):
-            Recorder(tmp_path / "missing" / "run.rrd", twin)
-        with pytest.raises(ValueError, match="period_us"):
-            Recorder(tmp_path / "run.rrd", twin, period_us=0)
-        with pytest.raises(ValueError, match="SCU 9"):
-            Recorder(tmp_path / "run.rrd", twin, scus=[1, 9])
-        with pytest.raises(ValueError, match="chunk_s"):
-            Recorder(tmp_path / "run.rrd", twin, chunk_s=float("nan"))
-        with pytest.raises(ValueError, match="smaller chunk_s"):
-            Recorder(tmp_path / "run.rrd", twin, chunk_s=3600)
+def test_recorder_rejects_bad_input(tmp_path, twin):
+    with pytest.raises(ValueError, match=r"\.rrd"):
+        Recorder(tmp_path / "run.txt", twin)
+    with pytest.raises(FileNotFoundError, match="does not exist"):
+        Recorder(tmp_path / "missing" / "run.rrd", twin)
+    with pytest.raises(ValueError, match="period_us"):
+        Recorder(tmp_path / "run.rrd", twin, period_us=0)
+    with pytest.raises(ValueError, match="SCU 9"):
+        Recorder(tmp_path / "run.rrd", twin, scus=[1, 9])
+    with pytest.raises(ValueError, match="chunk_s"):
+        Recorder(tmp_path / "run.rrd", twin, chunk_s=float("nan"))
+    with pytest.raises(ValueError, match="smaller chunk_s"):
+        Recorder(tmp_path / "run.rrd", twin, chunk_s=3600)
     assert not (tmp_path / "run.rrd").exists()      # nothing created by a refused recorder
     with pytest.raises(FileNotFoundError):
         read_rrd_entities(tmp_path / "nothing.rrd")
@@ -369,18 +369,17 @@ def test_can_log_formats(tmp_path, suffix):
     assert [bytes(m.data) for m in msgs] == [bytes(m.data) for m in first]
 
 
-def test_can_log_rejects_bad_paths(tmp_path):
-    with Twin(seed=0) as twin:
-        with pytest.raises(CanLogError, match="unknown format '.foo'"):
-            CanLog(tmp_path / "bus.foo", twin.network)
-        with pytest.raises(CanLogError, match="no suffix"):
-            CanLog(tmp_path / "bus", twin.network)
-        with pytest.raises(OSError, match="cannot write the CAN log"):
-            CanLog(tmp_path / "missing" / "bus.asc", twin.network)
-        (tmp_path / "ro").mkdir()
-        (tmp_path / "ro" / "bus.asc").mkdir()      # a directory where the file should go
-        with pytest.raises(IsADirectoryError):
-            CanLog(tmp_path / "ro" / "bus.asc", twin.network)
+def test_can_log_rejects_bad_paths(tmp_path, twin):
+    with pytest.raises(CanLogError, match="unknown format '.foo'"):
+        CanLog(tmp_path / "bus.foo", twin.network)
+    with pytest.raises(CanLogError, match="no suffix"):
+        CanLog(tmp_path / "bus", twin.network)
+    with pytest.raises(OSError, match="cannot write the CAN log"):
+        CanLog(tmp_path / "missing" / "bus.asc", twin.network)
+    (tmp_path / "ro").mkdir()
+    (tmp_path / "ro" / "bus.asc").mkdir()      # a directory where the file should go
+    with pytest.raises(IsADirectoryError):
+        CanLog(tmp_path / "ro" / "bus.asc", twin.network)
     assert check_log_path(tmp_path / "bus.blf.gz") == ".blf"
     assert not (tmp_path / "bus.blf.gz").exists()     # checking creates nothing
     with pytest.raises(CanLogError, match="unknown format"):

@@ -16,6 +16,7 @@ from humanoid_twin.host.motion import exe_traj, power_on
 from humanoid_twin.host.planners import flexao
 from humanoid_twin.master import supervisor as sv
 from humanoid_twin.protocol import rs232
+from humanoid_twin.scenarios import boot
 from humanoid_twin.twin import Twin
 
 DETECT_US = 50_000
@@ -25,8 +26,7 @@ def booted(seed: int = 0, **kw) -> tuple[Twin, object, list]:
     twin = Twin(seed=seed, **kw)
     events: list = []
     twin.master.supervisor.listeners.append(lambda kind, t, v: events.append((kind, t, v)))
-    H = twin.open_port()
-    power_on(H)
+    H = boot(twin)
     twin.run_for(0.05)
     return twin, H, events
 

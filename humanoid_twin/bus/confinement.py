@@ -15,14 +15,16 @@ from typing import TYPE_CHECKING, Any
 from humanoid_twin.bus.frames import TRAILING_RECESSIVE_BITS
 from humanoid_twin.bus.twin_bus import TwinBus
 from humanoid_twin.clock import US_PER_S
+from humanoid_twin.protocol.wire import ErrorState
 
 if TYPE_CHECKING:
     from humanoid_twin.bus.network import CanController
 
-ERROR_ACTIVE = "error-active"
-ERROR_PASSIVE = "error-passive"
-BUS_OFF = "bus-off"
-ERROR_STATE_CODE = {ERROR_ACTIVE: 0, ERROR_PASSIVE: 1, BUS_OFF: 2}   # the status byte's CAN state
+# a controller's ``state`` is the label of its protocol.wire.ErrorState (names and codes live there)
+ERROR_ACTIVE = ErrorState.ERROR_ACTIVE.label
+ERROR_PASSIVE = ErrorState.ERROR_PASSIVE.label
+BUS_OFF = ErrorState.BUS_OFF.label
+ERROR_STATE_CODE: dict[str, int] = {s.label: int(s) for s in ErrorState}   # label -> wire code
 
 PASSIVE_LIMIT = 127             # TEC or REC > 127 -> error-passive
 BUS_OFF_LIMIT = 255             # TEC > 255 -> bus-off

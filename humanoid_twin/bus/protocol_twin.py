@@ -26,6 +26,7 @@ from serial.serialutil import PortNotOpenError, SerialBase, SerialException
 
 from humanoid_twin.bus.serial_link import SerialLink
 from humanoid_twin.clock import US_PER_S
+from humanoid_twin.protocol.wire import BAUDRATE, PARITY
 
 DEFAULT_STEP_US = 100
 
@@ -146,7 +147,7 @@ class Serial(SerialBase):
                 f"twin://{self._name}: the link runs at {link.baudrate} baud "
                 f"{link.bytesize}{link.parity}{link.stopbits} (seed 002 slide 7) but the port is set to "
                 f"{self._baudrate} baud {self._bytesize}{self._parity}{self._stopbits}: "
-                "open it with baudrate=115200, parity='E'")
+                f"open it with baudrate={BAUDRATE}, parity='{PARITY}'")
         return link
 
     # -- time base ---------------------------------------------------------------------------

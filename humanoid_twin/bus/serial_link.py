@@ -18,8 +18,9 @@ from collections import deque
 from collections.abc import Callable
 
 from humanoid_twin.clock import US_PER_S, Clock
+from humanoid_twin.protocol.wire import BAUDRATE, BYTESIZE, PARITY, STOPBITS
 
-DEFAULT_BAUDRATE = 115200
+DEFAULT_BAUDRATE = BAUDRATE
 _PARITY_BITS = {"N": 0, "E": 1, "O": 1, "M": 1, "S": 1}
 
 
@@ -51,8 +52,8 @@ class SerialLink:
     :param bytesize, parity, stopbits: the character frame (seed 002 slide 7: 8, "E", 1).
     """
 
-    def __init__(self, clock: Clock, baudrate: int = DEFAULT_BAUDRATE, *, bytesize: int = 8,
-                 parity: str = "E", stopbits: int = 1) -> None:
+    def __init__(self, clock: Clock, baudrate: int = DEFAULT_BAUDRATE, *, bytesize: int = BYTESIZE,
+                 parity: str = PARITY, stopbits: int = STOPBITS) -> None:
         if not isinstance(baudrate, int) or baudrate <= 0:
             raise ValueError(f"baudrate must be a positive int, got {baudrate!r}")
         if bytesize not in (5, 6, 7, 8):

@@ -30,7 +30,6 @@ from humanoid_twin.hardware import (
     FORCE_CALIBRATION_VALUE,
     FORCE_N_PER_COUNT,
     FORCE_SENSOR_XY_MM,
-    N_SCU,
     N_SPECIAL_SENSORS,
 )
 from humanoid_twin.host import timebase
@@ -38,6 +37,7 @@ from humanoid_twin.host.drivers import ErrorCode, readjoint, readspecial
 from humanoid_twin.host.planners import TICK_S
 from humanoid_twin.host.tables import RobotTables, default_tables
 from humanoid_twin.protocol.rs232 import PARAM_CURRENT, PARAM_POSITION
+from humanoid_twin.protocol.wire import check_scu
 
 __all__ = [
     "COP_MIN_LOAD",
@@ -118,12 +118,7 @@ def calccop(react: Any, calib_load: Any = None, *, tables: RobotTables | None = 
 
 
 def _scu(scu: Any) -> int:
-    try:
-        s = int(scu)
-    except (TypeError, ValueError):
-        raise ValueError(f"scu must be 1..{N_SCU}, got {scu!r}") from None
-    if s != scu or not 1 <= s <= N_SCU:
-        raise ValueError(f"scu must be 1..{N_SCU}, got {scu!r}")
+    s = check_scu(scu, "scu")
     if s not in FOOT_OF_SCU:
         raise ValueError(f"SCU {s} has no force-sensing foot (feet: {sorted(FOOT_OF_SCU)})")
     return s

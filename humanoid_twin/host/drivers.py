@@ -71,14 +71,25 @@ from humanoid_twin.protocol.rs232 import (
     SUPERVISOR_READ,
     SUPERVISOR_RESET,
     TEST_MESSAGE,
-    ControlType,
     FrameError,
     Op,
     decode_response,
     encode_request,
     from_s8,
     hexdump,
+    parse_opcode,
     s8,
+)
+from humanoid_twin.protocol.wire import (
+    BAUDRATE,
+    LINE_SETTINGS,
+    STATUS_ALL_FINISHED,
+    STATUS_CALIB,
+    STATUS_DEADLINE,
+    STATUS_ONE_FINISHED,
+    STATUS_PWM,
+    ControlType,
+    ErrorState,
 )
 
 __all__ = [
@@ -122,18 +133,13 @@ __all__ = [
     "STATUS_ONE_FINISHED",
 ]
 
-DEFAULT_RATE = 115200
+DEFAULT_RATE = BAUDRATE
 # Read timeout per attempt. A request is answered in 1.17 ms at 115200 baud (docs/master.md);
 # 0.1 s leaves room for a pty or a TCP bridge paced in real time.
 DEFAULT_TIMEOUT_S = 0.1
 DEFAULT_MAX_TRIES = 3
 
-# Status byte (READ answers' 4th value, the CAN status byte of SPEC.md section 3).
-STATUS_PWM = 0x80
-STATUS_CALIB = 0x40
-STATUS_DEADLINE = 0x20
-STATUS_ALL_FINISHED = 0x10
-STATUS_ONE_FINISHED = 0x08
+# Status byte (READ answers' 4th value): STATUS_* of protocol/wire.py, re-exported here.
 
 
 class ErrorCode(IntEnum):
@@ -359,10 +365,7 @@ def initcom(
     try:
         H = serial.serial_for_url(
             url,
-            baudrate=rate,
-            bytesize=serial.EIGHTBITS,
-            parity=serial.PARITY_EVEN,
-            stopbits=serial.STOPBITS_ONE,
+            **{**LINE_SETTINGS, "baudrate": rate},
             timeout=timeout,
             write_timeout=max(1.0, timeout),
         )
@@ -667,7 +670,7 @@ def raise_for_error(result: tuple[Any, ...], what: str = "request", H: Any = Non
         return
     code = ErrorCode(err)
     rx = result.rx  # type: ignore[attr-defined]
-    is_apply = len(rx) == 6 and rx[1] >> 6 <= Op.APPLY_CONTROL
+    is_apply = len(rx) == 6 and parse_opcode(rx[1])[0] <= Op.APPLY_CONTROL
     if H is not None and code == ErrorCode.INVALID_REQUEST and is_apply:
         sup = readsupervisor(H)
         if sup.error == ErrorCode.OK and sup.mode in (3, 4):
@@ -694,7 +697,10 @@ class CanStatus(NamedTuple):
     @property
     def state_name(self) -> str:
         """``"error-active"``, ``"error-passive"`` or ``"bus-off"``."""
-        return {0: "error-active", 1: "error-passive", 2: "bus-off"}.get(self.error_state, "unknown")
+        try:
+            return ErrorState(self.error_state).label
+        except ValueError:
+            return "unknown"
 
 
 class Supervisor(NamedTuple):

@@ -18,7 +18,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from humanoid_twin.hardware import N_SCU, N_SERVOS
+from humanoid_twin.hardware import N_SERVOS
 from humanoid_twin.host import timebase
 from humanoid_twin.host.drivers import (
     STATUS_CALIB,
@@ -30,7 +30,7 @@ from humanoid_twin.host.drivers import (
     raise_for_error,
     readjoint,
 )
-from humanoid_twin.host.planners import GAINS, LEG_SCUS, MAX_PERIOD_S, TICK_S
+from humanoid_twin.host.planners import GAINS, LEG_SCUS, MAX_PERIOD_S, TICK_S, control_row
 from humanoid_twin.host.tables import RobotTables, adaptate, correct, default_tables, limit
 from humanoid_twin.protocol.rs232 import (
     PARAM_CONTROLON,
@@ -41,8 +41,8 @@ from humanoid_twin.protocol.rs232 import (
     PARAM_POSITION,
     PARAM_SPECIAL,
     PARAM_VELOCITY,
-    ControlType,
 )
+from humanoid_twin.protocol.wire import N_SCU, SCUS, ControlType, check_scu
 
 __all__ = [
     "ALL_SCUS",
@@ -57,7 +57,7 @@ __all__ = [
     "send_gains",
 ]
 
-ALL_SCUS: tuple[int, ...] = tuple(range(1, N_SCU + 1))
+ALL_SCUS: tuple[int, ...] = SCUS
 
 
 class TrajData(NamedTuple):
@@ -79,13 +79,7 @@ class TrajData(NamedTuple):
 def _scus(scus: Iterable[int]) -> tuple[int, ...]:
     out = []
     for s in scus:
-        try:
-            v = operator.index(s)
-        except TypeError:
-            raise ValueError(f"SCU addresses must be integers 1..{N_SCU}, got {s!r}") from None
-        if not 1 <= v <= N_SCU:
-            raise ValueError(f"SCU addresses must be 1..{N_SCU}, got {v}")
-        out.append(v)
+        out.append(check_scu(s, "SCU addresses"))
     if not out:
         raise ValueError("no SCU to drive")
     if len(set(out)) != len(out):
@@ -228,9 +222,9 @@ def exe_traj(
         if kk.shape != (N_SCU, N_SERVOS, n_m, 4):
             raise ValueError(f"k must be {N_SCU} x {N_SERVOS} x {n_m} x 4, got shape {kk.shape}")
     if scus is None:
-        used = {s for s in range(1, N_SCU + 1) if np.any(pos[s - 1] != 0)}
+        used = {s for s in SCUS if np.any(pos[s - 1] != 0)}
         if kk is not None:
-            used |= {s for s in range(1, N_SCU + 1) if np.any(kk[s - 1] != 0)}
+            used |= {s for s in SCUS if np.any(kk[s - 1] != 0)}
         scus = sorted(used | set(LEG_SCUS))
     scus_t = _scus(scus)
     if np.any(~np.isfinite(pos[[s - 1 for s in scus_t]])):
@@ -335,8 +329,7 @@ def controller(
     gains = _gains_array(GAINS[ctype] if k is None else k, N_SCU if per_scu else len(scus_t))
     for j, s in enumerate(scus_t):
         g = gains[s - 1] if per_scu else gains[j]
-        ks = np.concatenate([np.asarray(g), np.full((N_SERVOS, 1), int(ctype))], axis=1)
-        send_gains(H, s, ks)
+        send_gains(H, s, control_row(ctype, g))
 
 
 def controller_off(H: Any, *, scus: Iterable[int] = ALL_SCUS) -> None:

@@ -33,8 +33,8 @@ from typing import Any
 import numpy as np
 
 from humanoid_twin.clock import US_PER_S
-from humanoid_twin.hardware import N_SCU, N_SERVOS, PWM_PERIOD_US
-from humanoid_twin.protocol.rs232 import ControlType
+from humanoid_twin.hardware import N_SERVOS, PWM_PERIOD_US
+from humanoid_twin.protocol.wire import N_SCU, ControlType
 
 __all__ = [
     "GAINS",
@@ -57,6 +57,8 @@ __all__ = [
     "levantar_perna",
     "empty_plan",
     "leg_pose",
+    "control_row",
+    "with_control",
 ]
 
 # Rows of pos_apply / k (SCU - 1) and columns (servo index) of the leg and hip boards
@@ -147,9 +149,33 @@ def empty_plan(n_motions: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return np.zeros((N_SCU, N_SERVOS, m)), np.zeros((N_SCU, N_SERVOS, m, 4)), np.zeros(m)
 
 
+def control_row(ctype: int | ControlType, gains: Any = None) -> np.ndarray:
+    """One board's ``k`` entries for one motion (table 23): 3 x 4, rows servos 1-3, columns
+    ``[KI, KP, KD, control type]``. ``gains``: (KI, KP, KD) per servo (3 x 3) or one triple for
+    all three; default :data:`GAINS` of ``ctype``. A negative gain (a signed KP) is stored as its
+    two's complement byte; ``ValueError`` outside -128..255. The one place a k row is built."""
+    ctype = ControlType(int(ctype))
+    g = np.broadcast_to(np.asarray(GAINS[ctype] if gains is None else gains), (N_SERVOS, 3))
+    if np.any(g < -128) or np.any(g > 255):
+        raise ValueError(f"gains must be bytes (-128..255), got {g.tolist()}")
+    row = np.empty((N_SERVOS, 4))
+    row[:, :3] = np.asarray(g, dtype=np.int64) & 0xFF
+    row[:, 3] = int(ctype)
+    return row
+
+
+def with_control(k: np.ndarray, ctype: int | ControlType, scus: tuple[int, ...] = LEG_SCUS) -> np.ndarray:
+    """A copy of ``k`` (8 x 3 x M x 4) with the boards ``scus`` on control type ``ctype`` and its
+    :data:`GAINS` in every motion (``humanoid-twin run --control``)."""
+    out = np.array(k, dtype=float, copy=True)
+    row = control_row(ctype)
+    for scu in scus:
+        out[scu - 1] = row[:, None, :]
+    return out
+
+
 def _set_k(k: np.ndarray, row: int, m: int, ctype: ControlType) -> None:
-    k[row, :, m, :3] = GAINS[ctype]
-    k[row, :, m, 3] = int(ctype)
+    k[row, :, m] = control_row(ctype)
 
 
 def leg_pose(

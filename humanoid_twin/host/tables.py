@@ -14,14 +14,14 @@ from __future__ import annotations
 
 import json
 import math
-import operator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from humanoid_twin.hardware import N_SCU, N_SERVOS, POS_MAX_DEG, POS_MIN_DEG
+from humanoid_twin.hardware import N_SERVOS
+from humanoid_twin.protocol.wire import N_SCU, POS_LIMIT_DEG, check_scu
 
 __all__ = [
     "TABLES_PATH",
@@ -97,8 +97,8 @@ def load_tables(path: str | Path | None = None) -> RobotTables:
         scu, servo = bad[0]
         raise TablesError(f"{p}: lim_min > lim_max for SCU {scu + 1} servo {servo + 1}")
     for name in ("lim_min", "lim_max"):
-        if np.any(t[name] < POS_MIN_DEG) or np.any(t[name] > POS_MAX_DEG):
-            raise TablesError(f"{p}: {name} must lie within {POS_MIN_DEG}..{POS_MAX_DEG} degrees")
+        if np.any(np.abs(t[name]) > POS_LIMIT_DEG):
+            raise TablesError(f"{p}: {name} must lie within -{POS_LIMIT_DEG}..{POS_LIMIT_DEG} degrees")
     entry = doc.get("force_calib_load", {"value": 0.0})
     try:
         load = float(entry["value"] if isinstance(entry, dict) else entry)
@@ -120,13 +120,7 @@ def default_tables(reload: bool = False) -> RobotTables:
 
 
 def _row(scuid: Any) -> int:
-    try:
-        scu = operator.index(scuid)
-    except TypeError:
-        raise ValueError(f"scuid must be an integer 1..{N_SCU}, got {scuid!r}") from None
-    if not 1 <= scu <= N_SCU:
-        raise ValueError(f"scuid must be 1..{N_SCU}, got {scu}")
-    return scu - 1
+    return check_scu(scuid, "scuid") - 1
 
 
 def _position(position: Any) -> np.ndarray:

@@ -21,8 +21,9 @@ from humanoid_twin.hardware import N_SERVOS
 from humanoid_twin.host import timebase
 from humanoid_twin.host.drivers import ErrorCode, raise_for_error, readjoint
 from humanoid_twin.host.motion import _apply, _scus, period_ticks, send_gains
-from humanoid_twin.host.planners import TICK_S
-from humanoid_twin.protocol.rs232 import PARAM_CURRENT, PARAM_POSITION, PARAM_VELOCITY, ControlType
+from humanoid_twin.host.planners import TICK_S, control_row
+from humanoid_twin.protocol.rs232 import PARAM_CURRENT, PARAM_POSITION, PARAM_VELOCITY
+from humanoid_twin.protocol.wire import ControlType
 
 __all__ = [
     "TEST_SCU",
@@ -142,8 +143,7 @@ def sample_traj3(
         raise ValueError(f"Textra must be >= 0 s, got {Textra!r}")
     if not (math.isfinite(dt) and dt > 0):
         raise ValueError(f"dt must be > 0 s, got {dt!r}")
-    ctype = int(ControlType(int(control)))
-    send_gains(H, s, np.concatenate([gains, np.full((N_SERVOS, 1), ctype)], axis=1))
+    send_gains(H, s, control_row(control, gains))
     # to pos0 and rest there
     _apply(H, s, PARAM_VELOCITY, [settle_ticks] * 3, "sample_traj period")
     _apply(H, s, PARAM_POSITION, [int(v) for v in np.rint(p0)], "sample_traj pos0")

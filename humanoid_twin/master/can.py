@@ -16,8 +16,10 @@ from humanoid_twin.master.candrivers import CanDrivers
 from humanoid_twin.master.database import Database
 from humanoid_twin.protocol.canframes import (
     ACTUATION_IDS,
+    ID_FIELDS,
     MASTER_ADDRESS,
     OP_SENSORS,
+    SFLAGS_SUPERVISOR,
     PayloadError,
     control_byte,
     master_filters,
@@ -101,10 +103,9 @@ class MasterCan:
         c = db.counters
         c.can_rx_frames += 1
         ident = msg.arbitration_id
-        src = ident >> 7
-        index = (ident >> 2) & 1
+        src, dst, index, op = ID_FIELDS[ident] if ident <= 0x7FF else (-1, -1, 0, -1)
         s = db.sensors.get(src)
-        if s is None or ident & 3 != OP_SENSORS or (ident >> 3) & 0x0F != MASTER_ADDRESS:
+        if s is None or op != OP_SENSORS or dst != MASTER_ADDRESS:
             return self._reject(ident, f"id 0x{ident:03X}: not a sensor packet from slave 1..8 to Master")
         data = msg.data
         try:
@@ -120,14 +121,14 @@ class MasterCan:
             s.pos[:] = pos
             s.vel[:] = vel
             s.status = status
-            s.sflags = data[0] & 0x07
+            s.sflags = data[0] & SFLAGS_SUPERVISOR
             s.rx1 = True
             s.packets1 += 1
             db.update_calibration(src, status)
         else:
             s.current[:] = curr
             s.special[:] = special
-            s.sflags2 = data[0] & 0x07
+            s.sflags2 = data[0] & SFLAGS_SUPERVISOR
             s.rx2 = True
             s.packets2 += 1
         s.last_rx_us = self.clock.now_us
@@ -148,6 +149,6 @@ class MasterCan:
 
     def error_status(self) -> tuple[int, int, int]:
         """``(ERRSTATE, TEC, REC)`` of the Master's controller for the CAN status response:
-        ERRSTATE 0 error-active, 1 error-passive, 2 bus-off; TEC/REC clipped to a byte."""
+        ERRSTATE a :class:`~humanoid_twin.protocol.wire.ErrorState` code; TEC/REC clipped to a byte."""
         ctl = self.drivers.controller
         return ctl.error_state_code, min(ctl.tec, 255), min(ctl.rec, 255)

@@ -54,24 +54,6 @@ class CanDrivers:
             raise CanDriverError(f"CAN node {self.name!r}: myCANInitialize was not called")
         return ctl
 
-    def _send(self, n: int, msg: can.Message) -> bool:
-        self.txb[n] = msg
-        return self._ctl().send(msg) is not False
-
-    def myCANSendMessage(self, msg: can.Message) -> bool:
-        """``myCANSendMessage`` (table 5): send through the first empty TX buffer.
-
-        A buffer is empty when nothing was requested through it since the controller last had
-        no pending frame or the last abort (``myCANAbort``). Returns False if refused (all
-        three buffers pending, or bus-off).
-        """
-        if not self._ctl().pending:
-            self.txb[0] = self.txb[1] = self.txb[2] = None
-        for n in range(N_TX_BUFFERS):
-            if self.txb[n] is None:
-                return self._send(n, msg)
-        return self._send(N_TX_BUFFERS - 1, msg)
-
     def myCANSendMessage0(self, msg: can.Message) -> bool:
         """``myCANSendMessage0`` (table 5): send through TX buffer 0 (packet index 0)."""
         # _send(0, msg), inlined: the Master's schedule calls this 2000 times a second
@@ -88,10 +70,6 @@ class CanDrivers:
         if ctl is None:
             ctl = self._ctl()
         return ctl.send(msg) is not False
-
-    def myCANSendMessage2(self, msg: can.Message) -> bool:
-        """``myCANSendMessage2`` (table 5): send through TX buffer 2."""
-        return self._send(2, msg)
 
     def myCANAbort(self) -> bool:
         """Abort every pending transmission (TXABT, used by the Master's schedule, slide 27).
@@ -124,16 +102,4 @@ class CanDrivers:
         msg = rxb[1]
         if msg is not None:
             rxb[1] = None
-        return msg
-
-    def myCANReceiveMessage0(self) -> can.Message | None:
-        """``myCANReceiveMessage0`` (table 5): read (and free) RX buffer 0, or None if empty."""
-        msg = self.rxb[0]
-        self.rxb[0] = None
-        return msg
-
-    def myCANReceiveMessage1(self) -> can.Message | None:
-        """``myCANReceiveMessage1`` (table 5): read (and free) RX buffer 1, or None if empty."""
-        msg = self.rxb[1]
-        self.rxb[1] = None
         return msg

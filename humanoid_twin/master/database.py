@@ -19,16 +19,14 @@ simulated second.
 
 from __future__ import annotations
 
-from humanoid_twin.hardware import N_SCU, N_SERVOS, N_SPECIAL_SENSORS
-
-SCUS: tuple[int, ...] = tuple(range(1, N_SCU + 1))
+from humanoid_twin.hardware import N_SERVOS, N_SPECIAL_SENSORS
+from humanoid_twin.protocol.wire import SCUS, STATUS_CALIB, check_scu
 
 # Calibration request state per SCU (APPLY_JOINT SPECIAL D2 = 1; docs/master.md).
 CALIB_IDLE = 0        # Calib bit clear
 CALIB_REQUESTED = 1   # Calib bit set, waiting for the slave to report "not calibrated" (status bit 6 = 0)
 CALIB_RUNNING = 2     # Calib bit set, slave calibrating, waiting for status bit 6 = 1
 
-STATUS_CALIB_BIT = 0x40  # status byte bit 6: calibration complete (SPEC section 3)
 
 
 class ScuActuation:
@@ -112,17 +110,11 @@ class Database:
 
     def actuation(self, scu: int) -> ScuActuation:
         """Actuation data of SCU ``scu`` (1..8); ValueError otherwise."""
-        try:
-            return self.actuators[scu]
-        except KeyError:
-            raise ValueError(f"SCU address must be 1..{N_SCU}, got {scu!r}") from None
+        return self.actuators[check_scu(scu)]
 
     def sensor(self, scu: int) -> ScuSensors:
         """Sensor data of SCU ``scu`` (1..8); ValueError otherwise."""
-        try:
-            return self.sensors[scu]
-        except KeyError:
-            raise ValueError(f"SCU address must be 1..{N_SCU}, got {scu!r}") from None
+        return self.sensors[check_scu(scu)]
 
     def request_calibration(self, scu: int) -> None:
         """Set the Calib flag of ``scu`` (APPLY_JOINT SPECIAL D2 = 1) until the slave reports done."""
@@ -141,7 +133,7 @@ class Database:
         state = a.calib_state
         if state == CALIB_IDLE:
             return
-        done = status & STATUS_CALIB_BIT
+        done = status & STATUS_CALIB
         if state == CALIB_REQUESTED:
             if not done:
                 a.calib_state = CALIB_RUNNING

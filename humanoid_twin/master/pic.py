@@ -27,7 +27,7 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from humanoid_twin.hardware import N_SCU
+from humanoid_twin.protocol.wire import N_SCU
 
 if TYPE_CHECKING:
     import can

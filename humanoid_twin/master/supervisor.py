@@ -27,9 +27,17 @@ from typing import TYPE_CHECKING, Any, NamedTuple
 
 from humanoid_twin.bus.network import BUS_OFF
 from humanoid_twin.clock import US_PER_S
-from humanoid_twin.hardware import FOOT_OF_SCU, FORCE_SENSOR_XY_MM, N_SCU, PWM_PERIOD_US
+from humanoid_twin.hardware import FOOT_OF_SCU, FORCE_SENSOR_XY_MM, PWM_PERIOD_US
 from humanoid_twin.protocol.canframes import SFLAGS2_LAW, SFLAGS_CAN_STATE
 from humanoid_twin.protocol.rs232 import SUPERVISOR_FAULTS, SUPERVISOR_MODES
+from humanoid_twin.protocol.wire import (
+    MASTER_ADDRESS,
+    POS_LIMIT_DEG,
+    SCUS,
+    STATUS_CALIB,
+    STATUS_DEADLINE,
+    STATUS_PWM,
+)
 from humanoid_twin.slave.data import calcCoP
 
 if TYPE_CHECKING:
@@ -63,9 +71,6 @@ LAW = 8                          # a Slave stopped a control law that failed (do
 FAULT_NAMES: dict[int, str] = SUPERVISOR_FAULTS
 
 ROUND_US = 8_000                 # one CAN schedule round (module PIC: 8 slaves x 1 ms)
-_STATUS_PWM = 0x80               # Sensors 1 status byte bits (seed 002 slide 20)
-_STATUS_CALIB = 0x40
-_STATUS_DEADLINE = 0x20
 _OP_APPLY_JOINT = 0
 _OP_APPLY_CONTROL = 1
 _PARAM_SPECIAL = 3
@@ -101,7 +106,7 @@ class SupervisorConfig:
 
     silent_rounds: int = 3           # a board with no packet for this many rounds is silent
     deadline_ticks: int = 5          # deadline bit held for this many Slave ticks
-    over_travel_deg: int = 90        # |measured position| beyond this (the servos' -90..90)
+    over_travel_deg: int = POS_LIMIT_DEG   # |measured position| beyond this (the servos' range)
     balance_margin_mm: int = 3       # CoP of every loaded foot this close to its sensor rectangle
     balance_hold_ms: int = 100       # ... for this long (or no foot loaded for this long)
     balance_calib_load: int = 15     # 7-bit counts a sensor carried at calibration (host/cop.py)
@@ -139,10 +144,10 @@ class Supervisor:
         self.refused = 0                      # APPLY requests answered FC by the supervisor
         self.last_host_us = 0
         self._seen: set[tuple[int, int]] = set()
-        self._packets = {k: 0 for k in range(1, N_SCU + 1)}
-        self._quiet_rounds = {k: 0 for k in range(0, N_SCU + 1)}
+        self._packets = {k: 0 for k in SCUS}
+        self._quiet_rounds = {k: 0 for k in (MASTER_ADDRESS, *SCUS)}
         self._master_sent = 0
-        self._deadline_since: dict[int, int | None] = {k: None for k in range(1, N_SCU + 1)}
+        self._deadline_since: dict[int, int | None] = {k: None for k in SCUS}
         self._balance_since: int | None = None
 
     # -- what the host sees -----------------------------------------------------------------------
@@ -245,7 +250,7 @@ class Supervisor:
                 self._fault(SLAVE_CAN, k, now)
             if s.sflags2 & SFLAGS2_LAW:
                 self._fault(LAW, k, now)
-            if s.status & _STATUS_DEADLINE:
+            if s.status & STATUS_DEADLINE:
                 since = self._deadline_since[k]
                 if since is None:
                     self._deadline_since[k] = s.last_rx_us
@@ -256,7 +261,7 @@ class Supervisor:
         if self.mode == READY:
             lim = cfg.over_travel_deg
             for k, s in db.sensors.items():
-                if s.status & _STATUS_PWM:
+                if s.status & STATUS_PWM:
                     for p in s.pos:
                         if p > lim or p < -lim:
                             self._fault(OVER_TRAVEL, k, now)
@@ -268,7 +273,7 @@ class Supervisor:
             self._set_mode(READY)
 
     def _all_ready(self, now: int) -> bool:
-        want = _STATUS_PWM | _STATUS_CALIB
+        want = STATUS_PWM | STATUS_CALIB
         for s in self.db.sensors.values():
             if s.last_rx_us < 0 or now - s.last_rx_us > 2 * ROUND_US or s.status & want != want:
                 return False
@@ -293,7 +298,7 @@ class Supervisor:
         sensors = self.db.sensors
         cops = []
         for k in FOOT_OF_SCU:
-            if not sensors[k].status & _STATUS_PWM:
+            if not sensors[k].status & STATUS_PWM:
                 return None
             c = self.foot_cop_mm(k)
             if c is not None:

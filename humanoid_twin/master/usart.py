@@ -43,6 +43,7 @@ from humanoid_twin.protocol.rs232 import (
     Op,
     Request,
 )
+from humanoid_twin.protocol.wire import ErrorState, from_s8, s8
 
 if TYPE_CHECKING:
     from humanoid_twin.bus.serial_link import SerialLink
@@ -52,7 +53,6 @@ if TYPE_CHECKING:
 
 FRAME_GAP_US = 2_000      # more than this between two bytes of a frame: the frame is broken off
 PROCESS_US = 20           # usartProcessMsg + response build on the PIC (10 MIPS), before the 1st TX byte
-BAUDRATE = 115_200        # seed 002 slide 7: 1 start, 8 data, 1 parity (even), 1 stop
 
 _OP_APPLY_JOINT = int(Op.APPLY_JOINT)
 _OP_APPLY_CONTROL = int(Op.APPLY_CONTROL)
@@ -82,14 +82,11 @@ class Usart:
 
     # --- table 2: device drivers -----------------------------------------------------------
     def usartInit(self) -> None:
-        """``usartInit`` (table 2): empty buffers; the link's byte timing is 115200 8E1."""
+        """``usartInit`` (table 2): empty buffers; the link's byte timing is 115200 8E1
+        (:data:`humanoid_twin.protocol.wire.LINE_SETTINGS`, timed by the SerialLink)."""
         self.usartResetRxBuff()
         self.usartResetTxBuff()
         self.ext_len = 0
-
-    def usartStreamMode(self) -> bool:
-        """``usartStreamMode`` (table 2): True while a frame is being received (RX buffer not empty)."""
-        return self.rx_len > 0
 
     def usartStoreRx(self, byte: int) -> bool:
         """``usartStoreRx`` (table 2): store one received byte; True when the RX buffer holds 6 bytes.
@@ -155,11 +152,7 @@ class Usart:
         self.rx_len = 0
         self.db.counters.serial_frames_received += 1
         self.usartProcessMsg()
-        response = self.tx_drain()
-        if PROCESS_US:
-            self.clock.after(PROCESS_US, partial(self.tx_write, response))
-        else:
-            self.tx_write(response)
+        self.clock.after(PROCESS_US, partial(self.tx_write, self.tx_drain()))
 
     def _resync(self) -> None:
         """Bad BCC: drop the frame, keep what follows the next 0xFF after its first byte."""
@@ -231,7 +224,7 @@ class Usart:
         if op == _OP_APPLY_JOINT:
             a = db.actuators[scu]
             if param == PARAM_POSITION:
-                a.ref[:] = [x - 256 if x & 0x80 else x for x in d]
+                a.ref[:] = [from_s8(x) for x in d]
             elif param == PARAM_VELOCITY:
                 a.speed[:] = d
             else:  # PARAM_SPECIAL (param 2 is rejected by the validation)
@@ -268,7 +261,7 @@ class Usart:
                 sp = s.special
                 self._load_tx(rs232.data_response(sp[0], sp[1], sp[2], sp[3]))
                 return
-            self._load_tx(rs232.data_response(v[0] & 0xFF, v[1] & 0xFF, v[2] & 0xFF, s.status))
+            self._load_tx(rs232.data_response(s8(v[0]), s8(v[1]), s8(v[2]), s.status))
         else:
             assert op == _OP_MASTER
             if param == PARAM_TEST:
@@ -279,7 +272,7 @@ class Usart:
                 assert param == PARAM_CANSTATUS
                 err, tec, rec = self.can.error_status()
                 self._load_tx(rs232.data_response(err, tec, rec, db.answered_mask))
-                if err == 2:
+                if err == ErrorState.BUS_OFF:
                     self.can.canClearStatus()
 
     def _supervisor_request(self, d1: int) -> None:

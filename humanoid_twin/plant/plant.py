@@ -26,6 +26,7 @@ from humanoid_twin import hardware
 from humanoid_twin.clock import US_PER_S
 from humanoid_twin.plant import constants as C  # noqa: N812
 from humanoid_twin.plant.geometry import convex_hull, signed_distance
+from humanoid_twin.protocol.wire import N_SCU, POS_LIMIT_DEG, check_scu
 
 DEFAULT_MODEL = Path(__file__).resolve().parents[2] / "models" / "scene.xml"
 
@@ -91,8 +92,7 @@ class GeomInfo:
 
 
 def _check_scu(scu: int) -> None:
-    if not isinstance(scu, int) or isinstance(scu, bool) or not 1 <= scu <= hardware.N_SCU:
-        raise PlantInputError(f"SCU address must be an int 1..{hardware.N_SCU}, got {scu!r}")
+    check_scu(scu, error=PlantInputError)
 
 
 def _load_model(path: Path) -> tuple[mujoco.MjModel, list[str]]:
@@ -193,7 +193,7 @@ class Plant:
         ss = np.random.SeedSequence(self.seed)
         s_hw, self._s_pot, self._s_force = ss.spawn(3)
         offsets = np.random.default_rng(s_hw).uniform(-C.POT_OFFSET_RANGE_DEG, C.POT_OFFSET_RANGE_DEG,
-                                                      size=(hardware.N_SCU, hardware.N_SERVOS))
+                                                      size=(N_SCU, hardware.N_SERVOS))
         self.pot_b_true_deg: dict[int, tuple[float, float, float]] = {
             scu: tuple(hardware.POT_B_NOMINAL_DEG + float(o) for o in offsets[scu - 1])  # type: ignore[misc]
             for scu in hardware.SERVO_JOINTS
@@ -691,8 +691,8 @@ class Plant:
 
 
 _RAD_PER_US = math.radians(1.0) / hardware.PULSE_US_PER_DEG
-_PULSE_MIN_US = hardware.pulse_from_deg(hardware.POS_MIN_DEG)
-_PULSE_MAX_US = hardware.pulse_from_deg(hardware.POS_MAX_DEG)
+_PULSE_MIN_US = hardware.pulse_from_deg(-POS_LIMIT_DEG)
+_PULSE_MAX_US = hardware.pulse_from_deg(POS_LIMIT_DEG)
 _DEG_PER_RAD = 180.0 / math.pi
 _COUNTS_PER_N = 1.0 / hardware.FORCE_N_PER_COUNT
 _FACETS_CONDIM3 = np.arange(4)

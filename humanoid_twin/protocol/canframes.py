@@ -18,6 +18,22 @@ import struct
 from collections.abc import Sequence
 from typing import TYPE_CHECKING, NamedTuple
 
+from humanoid_twin.protocol.wire import (
+    CONTROL_CALIB,
+    CONTROL_PWM,
+    CONTROL_TYPE_BITS,
+    CONTROL_TYPE_MASK,
+    MASTER_ADDRESS,
+    SCUS,
+    STATUS_ALL_FINISHED,
+    STATUS_CALIB,
+    STATUS_DEADLINE,
+    STATUS_FINISHED,
+    STATUS_ONE_FINISHED,
+    STATUS_PWM,
+    ErrorState,
+)
+
 if TYPE_CHECKING:  # cantools is imported lazily by load_dbc (it is slow to import)
     import cantools.database
 
@@ -44,6 +60,8 @@ __all__ = [
     "supervisor_flags",
     "SFLAGS_WATCHDOG",
     "SFLAGS_CAN_STATE",
+    "SFLAGS_SUPERVISOR",
+    "ID_FIELDS",
     "SFLAGS2_LAW",
     "sflags",
     "pack_actuation1",
@@ -60,7 +78,6 @@ __all__ = [
 
 OP_ACTUATION = 0        # Master -> Slave (SPEC.md section 3, settled)
 OP_SENSORS = 1          # Slave -> Master
-MASTER_ADDRESS = 0      # seed 002 slide 19
 PAYLOAD_LEN = 8         # every packet carries 8 data bytes (slide 20)
 CURRENT_MAX = 100       # Curr1..3 are 0..100 (finalizeServoMeasures, SPEC.md section 4)
 
@@ -97,14 +114,17 @@ def split_id(arbitration_id: int) -> tuple[int, int, int, int]:
     return arbitration_id >> 7, (arbitration_id >> 3) & 0x0F, (arbitration_id >> 2) & 1, arbitration_id & 3
 
 
+# Every standard identifier's fields, ``ID_FIELDS[id] = split_id(id)`` (the receive paths' look-up).
+ID_FIELDS: tuple[tuple[int, int, int, int], ...] = tuple(split_id(i) for i in range(0x800))
+
 # Precomputed identifiers, scu 1..8 -> (packet index 0, packet index 1).
 ACTUATION_IDS: dict[int, tuple[int, int]] = {
     k: (can_id(MASTER_ADDRESS, k, 0, OP_ACTUATION), can_id(MASTER_ADDRESS, k, 1, OP_ACTUATION))
-    for k in range(1, 9)
+    for k in SCUS
 }
 SENSOR_IDS: dict[int, tuple[int, int]] = {
     k: (can_id(k, MASTER_ADDRESS, 0, OP_SENSORS), can_id(k, MASTER_ADDRESS, 1, OP_SENSORS))
-    for k in range(1, 9)
+    for k in SCUS
 }
 
 
@@ -141,8 +161,10 @@ def control_byte(pwm: bool, calib: bool, types: Sequence[int]) -> int:
     servo 3, 2, 1 (2 bits each; servo 1 in bits 1-0). ``types`` = (servo 1, servo 2, servo 3)."""
     try:
         t1, t2, t3 = types
-        if 0 <= t1 <= 3 and 0 <= t2 <= 3 and 0 <= t3 <= 3:
-            return (0x80 if pwm else 0) | (0x40 if calib else 0) | (t3 << 4) | (t2 << 2) | t1
+        m = CONTROL_TYPE_MASK
+        if 0 <= t1 <= m and 0 <= t2 <= m and 0 <= t3 <= m:
+            return ((CONTROL_PWM if pwm else 0) | (CONTROL_CALIB if calib else 0)
+                    | (t3 << 2 * CONTROL_TYPE_BITS) | (t2 << CONTROL_TYPE_BITS) | t1)
     except TypeError:
         pass
     except ValueError:
@@ -151,7 +173,10 @@ def control_byte(pwm: bool, calib: bool, types: Sequence[int]) -> int:
 
 
 _CONTROL_TABLE: tuple[tuple[bool, bool, tuple[int, int, int]], ...] = tuple(
-    (bool(b & 0x80), bool(b & 0x40), (b & 3, (b >> 2) & 3, (b >> 4) & 3)) for b in range(256)
+    (bool(b & CONTROL_PWM), bool(b & CONTROL_CALIB),
+     (b & CONTROL_TYPE_MASK, (b >> CONTROL_TYPE_BITS) & CONTROL_TYPE_MASK,
+      (b >> 2 * CONTROL_TYPE_BITS) & CONTROL_TYPE_MASK))
+    for b in range(256)
 )
 
 
@@ -183,25 +208,28 @@ def status_byte(
     except (TypeError, ValueError):
         raise PayloadError(f"fin must be 3 flags (servo 1, 2, 3), got {fin!r}") from None
     return (
-        (0x80 if pwm else 0)
-        | (0x40 if calib else 0)
-        | (0x20 if deadline else 0)
-        | (0x10 if fin_all else 0)
-        | (0x08 if fin_one else 0)
-        | (0x04 if f3 else 0)
-        | (0x02 if f2 else 0)
-        | (0x01 if f1 else 0)
+        (STATUS_PWM if pwm else 0)
+        | (STATUS_CALIB if calib else 0)
+        | (STATUS_DEADLINE if deadline else 0)
+        | (STATUS_ALL_FINISHED if fin_all else 0)
+        | (STATUS_ONE_FINISHED if fin_one else 0)
+        | (_FIN3 if f3 else 0)
+        | (_FIN2 if f2 else 0)
+        | (_FIN1 if f1 else 0)
     )
+
+
+_FIN1, _FIN2, _FIN3 = STATUS_FINISHED
 
 
 _STATUS_TABLE: tuple[SlaveStatus, ...] = tuple(
     SlaveStatus(
-        bool(b & 0x80),
-        bool(b & 0x40),
-        bool(b & 0x20),
-        bool(b & 0x10),
-        bool(b & 0x08),
-        (bool(b & 1), bool(b & 2), bool(b & 4)),
+        bool(b & STATUS_PWM),
+        bool(b & STATUS_CALIB),
+        bool(b & STATUS_DEADLINE),
+        bool(b & STATUS_ALL_FINISHED),
+        bool(b & STATUS_ONE_FINISHED),
+        (bool(b & _FIN1), bool(b & _FIN2), bool(b & _FIN3)),
     )
     for b in range(256)
 )
@@ -301,7 +329,7 @@ def pack_sensors1(src: int, pos: Sequence[int], speed: Sequence[int], status: in
     try:
         if not 0 <= src <= 15:
             raise ValueError(f"source address must be 0..15, got {src!r}")
-        if not 0 <= flags <= 7 or flags & SFLAGS_CAN_STATE == 3:
+        if not 0 <= flags <= 7 or flags & SFLAGS_CAN_STATE > ErrorState.BUS_OFF:
             raise ValueError(f"supervisor flags must be 0..7 with CAN state 0..2, got {flags!r}")
         p1, p2, p3 = pos
         v1, v2, v3 = speed
@@ -318,9 +346,9 @@ def unpack_sensors1(data: bytes) -> tuple[int, int, tuple[int, int, int], tuple[
         sf, p1, p2, p3, v1, v2, v3, st = _SEN1.unpack(data)
     except struct.error:
         raise _length_error("Sensors1", data) from None
-    if sf & SFLAGS_CAN_STATE == 3:
+    if sf & SFLAGS_CAN_STATE > ErrorState.BUS_OFF:
         raise PayloadError(f"Sensors1: SFlags 0x{sf:02X} carries CAN state 3 (0..2 only)")
-    return _split_sflags(sf & ~0x07, 0, "Sensors1"), 0, (p1, p2, p3), (v1, v2, v3), st
+    return _split_sflags(sf & ~SFLAGS_SUPERVISOR, 0, "Sensors1"), 0, (p1, p2, p3), (v1, v2, v3), st
 
 
 # Sensors 1 SFlags bits 2-0 (zero in seed 002 slide 20): the supervisor flags of the Slave
@@ -328,6 +356,7 @@ def unpack_sensors1(data: bytes) -> tuple[int, int, tuple[int, int, int], tuple[
 # CAN error state (0 error-active, 1 error-passive, 2 bus-off since its last tick).
 SFLAGS_WATCHDOG = 0x04
 SFLAGS_CAN_STATE = 0x03
+SFLAGS_SUPERVISOR = SFLAGS_WATCHDOG | SFLAGS_CAN_STATE   # bits 2-0 (Sensors 2: bit 2 = a law stopped)
 # Sensors 2 SFlags bit 2 (zero in slide 20): a control law of the Slave was stopped (it raised or
 # returned bad values; the board holds those servos; docs/controllers.md, docs/supervisor.md).
 SFLAGS2_LAW = 0x04

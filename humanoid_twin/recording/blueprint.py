@@ -13,6 +13,7 @@ from collections.abc import Sequence
 import rerun.blueprint as rrb
 
 from humanoid_twin.hardware import FOOT_OF_SCU, N_SERVOS, SERVO_JOINTS
+from humanoid_twin.protocol.wire import SCUS
 from humanoid_twin.recording.paths import (
     CAN,
     FEET,
@@ -56,7 +57,7 @@ def _joint_grid(scus: Sequence[int], name: str) -> rrb.Grid:
 
 
 def default_blueprint(
-    scus: Sequence[int] = tuple(range(1, 9)), master_entities: Sequence[str] = ()
+    scus: Sequence[int] = SCUS, master_entities: Sequence[str] = ()
 ) -> rrb.Blueprint:
     """The blueprint sent with every recording (see docs/recording.md, "Blueprint");
     ``master_entities``: the ``master/...`` counter entities, one plot each."""

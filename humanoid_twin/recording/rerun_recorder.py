@@ -39,7 +39,8 @@ os.environ.setdefault("RUST_LOG", "warn,re_log_encoding::rrd::file_sink=error")
 import rerun as rr  # noqa: E402
 
 from humanoid_twin.clock import US_PER_S
-from humanoid_twin.hardware import FOOT_OF_SCU, N_SCU, N_SPECIAL_SENSORS, PWM_PERIOD_US
+from humanoid_twin.hardware import FOOT_OF_SCU, N_SPECIAL_SENSORS, PWM_PERIOD_US
+from humanoid_twin.protocol.wire import SCUS
 from humanoid_twin.recording.blueprint import default_blueprint
 from humanoid_twin.recording.columns import (
     Column,
@@ -115,7 +116,7 @@ class Recorder:
         app_id: str = "humanoid_twin",
         *,
         chunk_s: float = 2.0,
-        scus: Iterable[int] = range(1, N_SCU + 1),
+        scus: Iterable[int] = SCUS,
         blueprint: bool = True,
         columns: Sequence[Column] = (),
         compact: bool = True,

@@ -27,20 +27,21 @@ from typing import TYPE_CHECKING, Any
 import can
 
 from humanoid_twin.bus.network import BUS_OFF
-from humanoid_twin.hardware import MASTER, PWM_BUSY_US, PWM_PERIOD_US
+from humanoid_twin.hardware import PWM_BUSY_US, PWM_PERIOD_US
 from humanoid_twin.protocol.canframes import (
-    OP_ACTUATION,
-    OP_SENSORS,
+    ACTUATION_IDS,
+    SENSOR_IDS,
     SFLAGS_WATCHDOG,
     PayloadError,
-    can_id,
     pack_sensors1,
     pack_sensors2,
+    parse_control_byte,
     slave_filters,
     status_byte,
     unpack_actuation1,
     unpack_actuation2,
 )
+from humanoid_twin.protocol.wire import ErrorState
 from humanoid_twin.slave.database import Global
 
 if TYPE_CHECKING:
@@ -89,10 +90,10 @@ class SlaveCan:
         self.phase_us = phase_us
         self.controller: Any = None
         self.node_name = f"slave{address}"
-        self._sensor_ids = (can_id(address, MASTER, 0, OP_SENSORS), can_id(address, MASTER, 1, OP_SENSORS))
+        self._sensor_ids = SENSOR_IDS[address]
         # the two actuation identifiers addressed to this board -> packet index: the destination
         # and operation check of lowISR in one dict lookup
-        self._rx_index = {can_id(MASTER, address, i, OP_ACTUATION): i for i in (0, 1)}
+        self._rx_index = {ACTUATION_IDS[address][i]: i for i in (0, 1)}
         # the sensor packets' messages (TXB0/TXB1), built once and reloaded for each answer
         self._tx_msgs: list[can.Message | None] = [None, None]
         self._isr_send_cb = self._isr_send
@@ -169,16 +170,13 @@ class SlaveCan:
             for i in range(3):
                 servo[i].ref = refs[i]
                 servo[i].speed = speeds[i]
-            ctl[0].type = control & 3
-            ctl[1].type = (control >> 2) & 3
-            ctl[2].type = (control >> 4) & 3
+            pwm, calib, types = parse_control_byte(control)
+            ctl[0].type, ctl[1].type, ctl[2].type = types
             ctl[2].kd = kd3
-            pwm = bool(control & 0x80)
             if not pwm and act.sysStatus.pwm and self.on_stop is not None:
                 act.sysStatus.pwm = False
                 self.on_stop()                     # PWM off now, not at the next tick
             act.sysStatus.pwm = pwm
-            calib = bool(control & 0x40)
             if calib and not act.sysStatus.calib:
                 # Calib request 0 -> 1: a new calibration. Report "not calibrated" from this
                 # answer on, so the Master keeps asking until the new calibration is done.
@@ -227,7 +225,7 @@ class SlaveCan:
         flags = SFLAGS_WATCHDOG if self.watchdog else 0
         c = self.controller
         if self.bus_off_seen:
-            flags |= 2
+            flags |= ErrorState.BUS_OFF
         elif c is not None:
             flags |= c.error_state_code
         self.payload[0] = pack_sensors1(

@@ -44,7 +44,8 @@ from dataclasses import dataclass
 from importlib.metadata import entry_points
 from typing import Any
 
-from humanoid_twin.hardware import N_SERVOS, POS_MAX_DEG, POS_MIN_DEG
+from humanoid_twin.hardware import N_SERVOS
+from humanoid_twin.protocol.wire import POS_LIMIT_DEG
 from humanoid_twin.slave.data import jacobianMatrix
 
 __all__ = [
@@ -89,8 +90,8 @@ PID_SHIFT = 4                # PID command u in 1/16 degree: gain byte K = K/16 
 JACOBIAN_SHIFT = 16          # v_q8 = (KP * J^T e) >> 16
 GAIN_SHIFT_MAX = 15          # KD byte = the balance gain's binary exponent, 0..15
 
-_U_MAX = POS_MAX_DEG << PID_SHIFT
-_U_MIN = POS_MIN_DEG << PID_SHIFT
+_U_MAX = POS_LIMIT_DEG << PID_SHIFT
+_U_MIN = -POS_LIMIT_DEG << PID_SHIFT
 
 
 class LawInputs:

@@ -29,12 +29,11 @@ from humanoid_twin.hardware import (
     FOOT_OF_SCU,
     N_SERVOS,
     N_SPECIAL_SENSORS,
-    POS_MAX_DEG,
-    POS_MIN_DEG,
     POT_B_NOMINAL_DEG,
     POT_COUNTS_PER_DEG,
     pulse_from_deg,
 )
+from humanoid_twin.protocol.wire import POS_LIMIT_DEG
 
 __all__ = [
     "B_NOMINAL_Q",
@@ -65,10 +64,10 @@ class ServoPlant(Protocol):
 
 def limitPosition(position: int) -> int:
     """``limitPosition`` (table 16): a position limited to the servo's -90..+90 degrees."""
-    if position > POS_MAX_DEG:
-        return POS_MAX_DEG
-    if position < POS_MIN_DEG:
-        return POS_MIN_DEG
+    if position > POS_LIMIT_DEG:
+        return POS_LIMIT_DEG
+    if position < -POS_LIMIT_DEG:
+        return -POS_LIMIT_DEG
     return position
 
 
@@ -167,11 +166,7 @@ class Pic2:
         applied = self.applied
         changed = False
         for i in range(N_SERVOS):
-            p = positions[i]
-            if p > POS_MAX_DEG:
-                p = POS_MAX_DEG
-            elif p < POS_MIN_DEG:
-                p = POS_MIN_DEG
+            p = limitPosition(positions[i])
             if p != applied[i]:
                 applied[i] = p
                 pulses[i] = pulse_from_deg(p)

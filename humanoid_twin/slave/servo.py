@@ -32,14 +32,8 @@ from __future__ import annotations
 from collections.abc import Sequence
 from typing import Any
 
-from humanoid_twin.hardware import (
-    FORCE_CALIBRATION_VALUE,
-    N_SERVOS,
-    N_SPECIAL_SENSORS,
-    POS_MAX_DEG,
-    POS_MIN_DEG,
-    POT_COUNTS_PER_DEG,
-)
+from humanoid_twin.hardware import FORCE_CALIBRATION_VALUE, N_SERVOS, N_SPECIAL_SENSORS, POT_COUNTS_PER_DEG
+from humanoid_twin.protocol.wire import POS_LIMIT_DEG
 from humanoid_twin.slave.data import divround
 from humanoid_twin.slave.database import Actuators, Control
 from humanoid_twin.slave.laws import (
@@ -56,6 +50,7 @@ from humanoid_twin.slave.laws import (
     LawInputs,
     balance_gain_bytes,
 )
+from humanoid_twin.slave.pic2 import limitPosition
 
 __all__ = [
     "NO_CONTROL",
@@ -156,7 +151,7 @@ class Calibration:
         """Step 2: the requested positions are latched (the caller applies them directly)."""
         for i in range(N_SERVOS):
             p = int(pos_master[i])
-            self.pos_master[i] = POS_MAX_DEG if p > POS_MAX_DEG else POS_MIN_DEG if p < POS_MIN_DEG else p
+            self.pos_master[i] = limitPosition(p)
             self.adc_sum[i] = 0
         for k in range(N_SPECIAL_SENSORS):
             self.force_sum[k] = 0
@@ -380,7 +375,7 @@ class ServoControl:
             self._stop(law, t, f"step returned {values!r}: expected {N_SERVOS} ints, one per servo")
             return None
         position = law.output == POSITION
-        lo, hi = (POS_MIN_DEG, POS_MAX_DEG) if position else (VELOCITY_MIN, VELOCITY_MAX)
+        lo, hi = (-POS_LIMIT_DEG, POS_LIMIT_DEG) if position else (VELOCITY_MIN, VELOCITY_MAX)
         for j in inp.servos:
             v = values[j]
             if type(v) is not int:
@@ -467,8 +462,8 @@ class ServoControl:
         self.last_v[i] = v >> 8 if v >= 0 else -((-v) >> 8)
         ref = self.reference[i]
         acc = self.acc[i] + v
-        hi = (POS_MAX_DEG - ref) << 16
-        lo = (POS_MIN_DEG - ref) << 16
+        hi = (POS_LIMIT_DEG - ref) << 16
+        lo = (-POS_LIMIT_DEG - ref) << 16
         if acc > hi:
             acc = hi
         elif acc < lo:

@@ -27,7 +27,8 @@ import time
 from typing import Any
 
 from humanoid_twin.clock import Clock
-from humanoid_twin.hardware import FOOT_OF_SCU, N_SCU, N_SERVOS, N_SPECIAL_SENSORS, PWM_PERIOD_US
+from humanoid_twin.hardware import FOOT_OF_SCU, N_SERVOS, N_SPECIAL_SENSORS, PWM_PERIOD_US
+from humanoid_twin.protocol.wire import check_scu
 from humanoid_twin.slave.can import SlaveCan
 from humanoid_twin.slave.data import calcCoP
 from humanoid_twin.slave.database import Global
@@ -57,21 +58,20 @@ MOTION_FIN_STILL_TICKS = 2
 
 
 class Slave:
-    """One Slave board (PIC18F258): ``Slave(address, clock, plant, network, *, phase_us, seed=0)``.
+    """One Slave board (PIC18F258): ``Slave(address, clock, plant, network, *, phase_us)``.
 
     ``address`` 1..8 (SCU, seed 002 slide 19); ``phase_us``: the start of its PWM periods
     (the first tick is the first instant >= ``clock.now_us`` congruent to ``phase_us`` modulo
-    20 ms); ``seed``: kept for symmetry with the other boxes (the firmware has no randomness).
+    20 ms). The firmware has no randomness: a board takes no seed.
     The public attributes are the manual's modules: ``db`` (GLOBAL: ``sensors``,
     ``actuators``), ``traj`` (TRAJECTORY), ``servo`` (SERVO), ``calib`` (its calibration),
     ``pic`` (PIC2), ``can`` (CAN).
     """
 
     def __init__(
-        self, address: int, clock: Clock, plant: Any, network: Any, *, phase_us: int, seed: int = 0
+        self, address: int, clock: Clock, plant: Any, network: Any, *, phase_us: int
     ) -> None:
-        if isinstance(address, bool) or not isinstance(address, int) or not 1 <= address <= N_SCU:
-            raise ValueError(f"Slave address must be an SCU address 1..{N_SCU}, got {address!r}")
+        address = check_scu(address, "Slave address (an SCU address)")
         if isinstance(phase_us, bool) or not isinstance(phase_us, int) or phase_us < 0:
             raise ValueError(f"phase_us must be a non-negative int of microseconds, got {phase_us!r}")
         if plant is not None and getattr(plant, "clock", clock) is not clock:
@@ -81,7 +81,6 @@ class Slave:
         self.plant = plant
         self.network = network
         self.phase_us = phase_us % PWM_PERIOD_US
-        self.seed = seed
         self.has_foot = address in FOOT_OF_SCU
         self.db = Global()
         self.sensors = self.db.sensors

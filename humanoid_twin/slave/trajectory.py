@@ -21,7 +21,8 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
-from humanoid_twin.hardware import N_SERVOS, POS_MAX_DEG, POS_MIN_DEG
+from humanoid_twin.hardware import N_SERVOS
+from humanoid_twin.slave.pic2 import limitPosition
 
 __all__ = ["FREE_TRAJECT", "NORMAL_TRAJECT", "StructTrajectory", "Trajectory", "round_deg"]
 
@@ -73,7 +74,7 @@ class Trajectory:
         """``initTrajectory`` (table 6): every servo at rest at ``positions`` (a finished free
         traject), with the given control types."""
         for i in range(N_SERVOS):
-            p = _limit(int(positions[i]))
+            p = limitPosition(int(positions[i]))
             t = self.traject[i]
             t.type = FREE_TRAJECT
             t.coef[0] = float(p)
@@ -135,11 +136,7 @@ class Trajectory:
         restarted = 0
         traject = self.traject
         for i in range(N_SERVOS):
-            ref = refs[i]
-            if ref > POS_MAX_DEG:
-                ref = POS_MAX_DEG
-            elif ref < POS_MIN_DEG:
-                ref = POS_MIN_DEG
+            ref = limitPosition(refs[i])
             t = traject[i]
             if ref != t.theta_final or types[i] != t.control_type:
                 self.calcTrajectory(i, start[i], ref, periods[i], types[i])
@@ -160,7 +157,3 @@ class Trajectory:
             return float(t.theta_final)
         c = t.coef
         return c[0] + tick * (c[1] + tick * (c[2] + tick * c[3]))
-
-
-def _limit(p: int) -> int:
-    return POS_MAX_DEG if p > POS_MAX_DEG else POS_MIN_DEG if p < POS_MIN_DEG else p
