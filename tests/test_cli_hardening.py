@@ -9,6 +9,7 @@ import signal
 import socket
 import subprocess
 import sys
+import time
 
 import pytest
 
@@ -107,11 +108,11 @@ def test_signal_mid_run_closes_the_recording_and_the_can_log(sig, code, tmp_path
                             text=True,
                             preexec_fn=_default_signals)
     try:
-        buf = ""
-        while "t=" not in buf:                   # the progress bar: the run is under way
-            ch = proc.stderr.read(1)
-            assert ch, "the run ended early"
-            buf += ch
+        line = "x"
+        while "booted by" not in line:           # the progress line: the run is under way
+            line = proc.stderr.readline()
+            assert line, "the run ended early"
+        time.sleep(1.0)
         proc.send_signal(sig)
         _, err = proc.communicate(timeout=60)
     finally:
