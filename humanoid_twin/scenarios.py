@@ -188,6 +188,8 @@ def get_scenario(name: str) -> Scenario:
 
 
 DEFAULT_T_S = 1.0           # the planners' default motion period (``--T``)
+# the planners' default angle (``--motion``, degrees) per scenario; ``--help`` shows them
+DEFAULT_MOTION_DEG = {"flexao": 20.0, "inclinar": 10.0, "levantar_perna": 40.0}
 # ``stand``: the vertical posture, both feet down, BALANCE_CONTROL on the leg boards and
 # LOCOMOTION_CONTROL on the hips. In double support the two legs must not run the same law
 # (they fight through the pelvis, docs/balance.md): the right leg leads (its foot front joint
@@ -208,7 +210,7 @@ STAND_GAINS: dict[int, tuple[tuple[int, int, int], ...]] = {
 
 @scenario("stand", moves=False, double_support=True)
 def _stand(T: float | None, motion: float | None, perna: int) -> Plan:
-    """vertical posture: leader/follower balance on the legs, LOCOMOTION on the hips"""
+    """stand still, balance control on the legs; --tilt DEG tilts the platform under it"""
     pos, k, t = empty_plan(1)
     for scu, ctype in STAND_CONTROL.items():
         k[scu - 1, :, 0] = control_row(ctype, STAND_GAINS.get(scu))
@@ -218,20 +220,22 @@ def _stand(T: float | None, motion: float | None, perna: int) -> Plan:
 
 @scenario("flexao", double_support=True)
 def _flexao(T: float | None, motion: float | None, perna: int) -> Plan:
-    """both legs bend (table 22); motion = ankle bend, default 20 deg"""
-    return Plan(*flexao(DEFAULT_T_S if T is None else T, 20.0 if motion is None else motion))
+    """squat: both legs bend, feet flat, trunk upright (table 22); --motion = the ankle's bend"""
+    default = DEFAULT_MOTION_DEG["flexao"]
+    return Plan(*flexao(DEFAULT_T_S if T is None else T, default if motion is None else motion))
 
 
 @scenario("inclinar", double_support=True)
 def _inclinar(T: float | None, motion: float | None, perna: int) -> Plan:
-    """both legs lean sideways (table 22); motion = foot lateral angle, default 10 deg"""
-    return Plan(*inclinar(DEFAULT_T_S if T is None else T, 10.0 if motion is None else motion))
+    """lateral lean: both legs roll sideways, feet flat (table 22); --motion = the foot lateral angle"""
+    default = DEFAULT_MOTION_DEG["inclinar"]
+    return Plan(*inclinar(DEFAULT_T_S if T is None else T, default if motion is None else motion))
 
 
 @scenario("levantar_perna")
 def _levantar_perna(T: float | None, motion: float | None, perna: int) -> Plan:
-    """lift a leg (table 22); motion = knee angle, default 40 deg; perna 1 right, 2 left"""
-    knee = 40.0 if motion is None else motion
+    """lift a leg: --perna 1 the right, 2 the left (table 22); --motion = the lifted knee's angle"""
+    knee = DEFAULT_MOTION_DEG["levantar_perna"] if motion is None else motion
     return Plan(*levantar_perna(DEFAULT_T_S if T is None else T, knee, perna))
 
 
@@ -258,8 +262,12 @@ def tilt_profile(
     return profile
 
 
-def run(opts: RunOptions, on_progress: Callable[[float, float], None] | None = None) -> dict[str, Any]:
-    """Run one scenario headless and return the SPEC.md section 6 summary."""
+def run(opts: RunOptions, on_progress: Callable[[float, float | None], None] | None = None
+        ) -> dict[str, Any]:
+    """Run one scenario headless and return the SPEC.md section 6 summary.
+
+    ``on_progress(t_s, end_s)`` is called every 0.1 s of virtual time: ``end_s`` is None during
+    the boot (its length is not known in advance), then the run's end time."""
     spec = get_scenario(opts.scenario)
     twin = Twin(seed=opts.seed, can_interface=opts.can_interface, can_channel=opts.can_channel,
                 supervisor=opts.supervisor)
@@ -292,6 +300,9 @@ def run(opts: RunOptions, on_progress: Callable[[float, float], None] | None = N
             injector.listeners.append(
                 lambda t, what, spec: rec_.log_event(t, f"injected {spec.text}: {what}", "WARN"))
         injector.install()
+        end: list[float | None] = [None]      # the run's end time, known once the boot is over
+        if on_progress is not None:
+            twin.every(100_000, lambda: on_progress(twin.now_s, end[0]))
         try:
             H = boot(twin)
         except BootError as exc:
@@ -310,8 +321,7 @@ def run(opts: RunOptions, on_progress: Callable[[float, float], None] | None = N
             duration = boot_s + max(motion_s, tilt_s) + SETTLE_S
         if opts.tilt:
             twin.plant.set_tilt_profile(tilt_profile(opts.tilt, boot_s))
-        if on_progress is not None:
-            twin.every(100_000, lambda: on_progress(twin.now_s, duration))
+        end[0] = duration
         try:
             if host_error is not None:
                 pass

@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import json
 import math
-from pathlib import Path
 
 import mujoco
 import numpy as np
@@ -37,9 +36,9 @@ from humanoid_twin.host import (
 from humanoid_twin.host import drivers as drv
 from humanoid_twin.host.planners import ANKLE_PITCH, ANKLE_ROLL, HIP_PITCH, HIP_ROLL, HIP_YAW, KNEE
 from humanoid_twin.host.tables import TABLES_PATH, TablesError
+from humanoid_twin.plant import DEFAULT_MODEL
 from humanoid_twin.protocol.rs232 import ControlType
 
-REPO = Path(__file__).resolve().parents[1]
 R_LEG, L_LEG, R_HIP, L_HIP = 0, 1, 2, 3
 LOCO, BAL = int(ControlType.LOCOMOTION_CONTROL), int(ControlType.BALANCE_CONTROL)
 
@@ -212,7 +211,7 @@ def test_table_signs_agree_with_the_plants_servo_mounting():
 
 
 def test_table_limits_lie_inside_the_models_joint_ranges():
-    model = mujoco.MjModel.from_xml_path(str(REPO / "models" / "scene.xml"))
+    model = mujoco.MjModel.from_xml_path(str(DEFAULT_MODEL))
     t = raw_tables()
     for scu, joints in hardware.SERVO_JOINTS.items():
         for i, name in enumerate(joints):

@@ -80,6 +80,44 @@ def _degrees(text: str) -> float:
 
 CAN_INTERFACES = ("humanoid_twin", "virtual", "socketcan")
 
+EXAMPLES = """\
+examples:
+  humanoid-twin run flexao                        squat; writes flexao.rrd, prints a summary
+  humanoid-twin view flexao.rrd                   open it in the rerun viewer (--web: no display)
+  humanoid-twin run levantar_perna --perna 2      lift the left leg
+  humanoid-twin run inclinar --motion -15 --T 2   lean 15 deg to the right, in 2 s
+  humanoid-twin run stand --tilt 20 --json        tilt the platform 20 deg toes up; JSON summary
+  humanoid-twin run flexao --viewer --no-record   watch it live in MuJoCo's viewer
+  humanoid-twin serve --tcp 5000                  the robot's serial port on socket://127.0.0.1:5000
+  humanoid-twin sweep stand --param tilt=10,20,30 --out out/tilt.csv
+
+more: the project's README.md and docs/ (docs/scenarios.md: what a run does, the summary's keys)"""
+
+
+def _version() -> str:
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("humanoid-twin")
+    except PackageNotFoundError:     # a source tree on sys.path, not installed
+        from humanoid_twin import __version__
+
+        return __version__
+
+
+def _scenario_lines() -> str:
+    """One line per registered scenario (its docstring's first line), then its defaults."""
+    from humanoid_twin.scenarios import DEFAULT_MOTION_DEG, DEFAULT_T_S, REGISTRY
+
+    width = max(len(name) for name in REGISTRY)
+    lines = ["scenarios:"]
+    for name, spec in REGISTRY.items():
+        lines.append(f"  {name:<{width}}  {spec.doc}")
+        if name in DEFAULT_MOTION_DEG:
+            lines.append(f"  {'':<{width}}  defaults: --T {DEFAULT_T_S:g} s, --motion "
+                         f"{DEFAULT_MOTION_DEG[name]:g} deg")
+    return "\n".join(lines)
+
 
 def _add_can_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--can-interface", choices=CAN_INTERFACES, default="humanoid_twin",
@@ -91,27 +129,38 @@ def _add_can_options(p: argparse.ArgumentParser) -> None:
 def build_parser() -> argparse.ArgumentParser:
     """The CLI's argument parser (exposed for the docs and the tests)."""
     from humanoid_twin.faults import add_fault_options
-    from humanoid_twin.scenarios import CONTROL_CHOICES, SCENARIOS
+    from humanoid_twin.scenarios import CONTROL_CHOICES, DEFAULT_MOTION_DEG, DEFAULT_T_S, SCENARIOS
 
+    raw = argparse.RawDescriptionHelpFormatter
     parser = _Parser(
         prog="humanoid-twin",
-        description="Digital twin of the University of Aveiro humanoid's legs and its 2006 control system.",
+        description="Digital twin of the University of Aveiro humanoid's legs and its 2006 control system\n"
+        "(PC -> RS-232 -> Master -> CAN -> 8 Slaves -> servos, on a MuJoCo robot).\n\n" + _scenario_lines(),
+        epilog=EXAMPLES, formatter_class=raw,
     )
-    sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
+    parser.add_argument("--version", action="version", version=f"%(prog)s {_version()}")
+    sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser, metavar="COMMAND")
 
     run = sub.add_parser(
         "run",
         help="run a scenario headless, write a rerun recording, print a summary",
         description="Run a scenario headless against the in-process twin (host -> RS-232 -> Master -> "
-        "CAN -> Slaves -> MuJoCo) and write a rerun recording.",
+        "CAN ->\nSlaves -> MuJoCo) and write a rerun recording. Progress on stderr, the summary on "
+        "stdout.\n\n" + _scenario_lines(),
+        epilog=EXAMPLES, formatter_class=raw,
     )
-    run.add_argument("scenario", choices=SCENARIOS, help="the motion to run")
-    run.add_argument("--duration", type=_positive, help="simulated seconds (default: the motion's own "
-                     "length plus boot and settling)")
-    run.add_argument("--T", type=_positive, help="the planner's movement period T (s)")
-    run.add_argument("--motion", type=_degrees, help="the planner's motion amplitude (degrees)")
-    run.add_argument("--perna", type=int, default=1, choices=(1, 2), help="levantar_perna: leg to lift "
-                     "(1 right, 2 left)")
+    run.add_argument("scenario", choices=SCENARIOS, metavar="SCENARIO",
+                     help=f"one of: {', '.join(SCENARIOS)} (see above)")
+    run.add_argument("--duration", type=_positive, metavar="S", help="simulated seconds (default: boot "
+                     "~2.7 s + the motion + 2 s of settling)")
+    run.add_argument("--T", type=_positive, metavar="S", help="the planner's movement period in "
+                     "seconds (seed 000 table 22; levantar_perna: each of its 5 steps). "
+                     f"Default: {DEFAULT_T_S:g} s")
+    per = ", ".join(f"{name} {deg:g}" for name, deg in DEFAULT_MOTION_DEG.items())
+    run.add_argument("--motion", type=_degrees, metavar="DEG", help="the planner's angle in degrees "
+                     f"(what it bends: see the scenarios above). Default: {per}")
+    run.add_argument("--perna", type=int, default=1, choices=(1, 2), help="levantar_perna: the leg to "
+                     "lift, 1 the right (default), 2 the left (seed 000 table 22)")
     run.add_argument("--out", type=Path, help="rerun recording to write (default: SCENARIO.rrd)")
     run.add_argument("--no-record", action="store_true", help="do not write a recording")
     run.add_argument("--can-log", type=Path, help="CAN log to write; format by suffix (.asc .blf .log "
@@ -207,20 +256,12 @@ def cmd_run(args: argparse.Namespace) -> int:
         faults=tuple(args.fault), supervisor=supervisor_config(args),
     )
     bar = None
-    on_progress = None
     if opts.progress:
-        from tqdm import tqdm
+        from humanoid_twin.cli.progress import RunProgress
 
-        bar = tqdm(total=100, unit="%", desc=f"{args.scenario} (simulated)", file=sys.stderr,
-                   bar_format="{desc}: {percentage:3.0f}%|{bar}|{postfix}", leave=False)
-
-        def on_progress(t: float, duration: float) -> None:
-            bar.n = min(100.0, 100.0 * t / duration) if duration > 0 else 100.0
-            bar.set_postfix_str(f"t={t:.1f}/{duration:.1f} s", refresh=False)
-            bar.refresh()
-
+        bar = RunProgress(args.scenario, sys.stderr)
     try:
-        summary = run(opts, on_progress=on_progress)
+        summary = run(opts, on_progress=None if bar is None else bar.update)
     except ScenarioError as exc:
         sys.stderr.write(f"humanoid-twin: {exc}\n")
         return 1

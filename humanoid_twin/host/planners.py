@@ -12,9 +12,9 @@ Each returns ``(pos_apply, k, t)`` with the shapes of table 23:
 - ``t``: ``(M,)``, the duration of each motion in seconds (the movement period, sent in 20 ms
   ticks).
 
-Joint signs (models/humanoid.xml, docs/model.md): every axis follows the world at the stand pose,
-x forward, y left, z up, the same for both legs. Pitch about +y: positive hip pitch swings the
-leg backward, positive knee flexes the knee, positive ankle pitch turns the toes down. Roll
+Joint signs (humanoid_twin/models/humanoid.xml and its README.md): every axis follows the world
+at the stand pose, x forward, y left, z up, the same for both legs. Pitch about +y: positive hip
+pitch swings the leg backward, positive knee flexes the knee, positive ankle pitch turns the toes down. Roll
 about +x: positive hip roll swings the leg to the robot's right (over a planted foot: the trunk
 moves left), positive ankle roll raises the foot's left edge (over a planted foot: the shank
 leans left). Only SCUs 1-4 (legs and hips) move; boards 5-8 stay

@@ -15,6 +15,8 @@ from __future__ import annotations
 import json
 import math
 from dataclasses import dataclass
+from importlib import resources
+from importlib.resources.abc import Traversable
 from pathlib import Path
 from typing import Any
 
@@ -36,7 +38,8 @@ __all__ = [
     "servo_to_leg",
 ]
 
-TABLES_PATH = Path(__file__).with_name("robot_tables.json")
+# package data, read with importlib.resources (works from a wheel, an editable install, a checkout)
+TABLES_PATH: Traversable = resources.files(__package__) / "robot_tables.json"
 TABLE_NAMES = ("signal", "offset", "calib", "lim_min", "lim_max")
 
 
@@ -80,7 +83,7 @@ def load_tables(path: str | Path | None = None) -> RobotTables:
     Checks: every table 8 x 3 and finite; ``signal`` only +1/-1; ``lim_min <= lim_max``, both
     within -90..90. Raises :class:`TablesError` naming the file and the problem.
     """
-    p = TABLES_PATH if path is None else Path(path)
+    p: Traversable | Path = TABLES_PATH if path is None else Path(path)
     try:
         doc = json.loads(p.read_text(encoding="utf-8"))
     except OSError as exc:

@@ -2,7 +2,8 @@
 
 What each Slave board sees and does on its servo and sensor cables (seed 000 section 3, module
 PIC2: ``servoActuation``, ``updateServoMeasures``, ``sampleExtraSensors``), implemented on the
-MuJoCo model of ``models/`` (docs/model.md), plus ground truth for recording and tests.
+MuJoCo model shipped in the package, ``humanoid_twin/models/`` (its README.md gives the source of
+every number; docs/model.md), plus ground truth for recording and tests.
 
 Hot paths (``set_pwm``, ``read_servos``, ``read_force_adc``, ``advance_to``) are called about
 1200 times per simulated second: they use precomputed addresses, plain Python ints and floats,
@@ -13,9 +14,11 @@ from __future__ import annotations
 
 import math
 import numbers
+import sys
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from importlib import resources
 from pathlib import Path
 from typing import Any
 
@@ -28,7 +31,12 @@ from humanoid_twin.plant import constants as C  # noqa: N812
 from humanoid_twin.plant.geometry import convex_hull, signed_distance
 from humanoid_twin.protocol.wire import N_SCU, POS_LIMIT_DEG, check_scu
 
-DEFAULT_MODEL = Path(__file__).resolve().parents[2] / "models" / "scene.xml"
+# The model ships inside the package (MuJoCo Menagerie / dm_control style) and is read with
+# importlib.resources, so `pip install .` (a wheel), `pip install -e .` and a source tree all load
+# the same files; the top-level `models/` of the repository is a symlink to this folder.
+MODELS = resources.files("humanoid_twin") / "models"
+DEFAULT_MODEL_NAME = "scene.xml"
+DEFAULT_MODEL = Path(str(MODELS / DEFAULT_MODEL_NAME))   # where it is on disk (an installed package)
 
 FOOT_BODIES: tuple[str, str] = ("r_foot", "l_foot")
 PAD_SUFFIXES: tuple[str, str, str, str] = ("fl", "fr", "rl", "rr")   # table 12 order
@@ -94,16 +102,37 @@ def _check_scu(scu: int) -> None:
     check_scu(scu, error=PlantInputError)
 
 
-def _load_model(path: Path) -> tuple[mujoco.MjModel, list[str]]:
-    if not path.is_file():
+def model_assets() -> dict[str, bytes]:
+    """Every file of the packaged model folder, by name (the ``assets`` of ``MjModel.from_xml_string``)."""
+    return {f.name: f.read_bytes() for f in MODELS.iterdir() if f.is_file() and f.name.endswith(".xml")}
+
+
+def _route_mujoco_warnings() -> None:
+    """MuJoCo's default warning handler appends to ``MUJOCO_LOG.TXT`` in the current directory and
+    prints on C stdout (after the run's last line). Unless the caller installed a handler of its
+    own, send each warning to stderr as one line instead: nothing is left in the user's folder."""
+    if mujoco.get_mju_user_warning() is None:
+        mujoco.set_mju_user_warning(_warn_on_stderr)
+
+
+def _warn_on_stderr(message: str) -> None:
+    sys.stderr.write(f"humanoid-twin: MuJoCo warning: {' '.join(message.split())}\n")
+
+
+def _load_model(path: Path | None) -> tuple[mujoco.MjModel, list[str]]:
+    if path is not None and not path.is_file():
         raise PlantError(f"MuJoCo model file not found: {path}")
     warnings: list[str] = []
     previous = mujoco.get_mju_user_warning()
     mujoco.set_mju_user_warning(warnings.append)
     try:
-        model = mujoco.MjModel.from_xml_path(str(path))
+        if path is None:
+            xml = (MODELS / DEFAULT_MODEL_NAME).read_text(encoding="utf-8")
+            model = mujoco.MjModel.from_xml_string(xml, assets=model_assets())
+        else:
+            model = mujoco.MjModel.from_xml_path(str(path))
     except Exception as exc:  # mujoco raises ValueError with the compiler's message
-        raise PlantError(f"cannot load MuJoCo model {path}: {exc}") from exc
+        raise PlantError(f"cannot load MuJoCo model {path or DEFAULT_MODEL}: {exc}") from exc
     finally:
         mujoco.set_mju_user_warning(previous)
     return model, warnings
@@ -112,16 +141,19 @@ def _load_model(path: Path) -> tuple[mujoco.MjModel, list[str]]:
 class Plant:
     """The MuJoCo robot as the Slave boards see it (servo cables and foot sensors).
 
-    ``Plant()`` loads ``models/scene.xml`` and resets to the ``stand`` keyframe with every PWM
-    off (limp servos, as at power-up). ``seed`` fixes the potentiometer offsets (drawn once per
-    plant) and the sensor noise streams (restarted by ``reset``). ``clock`` (or ``bind_clock``)
-    puts physics time under the twin's clock: the plant then steps itself before any access.
+    ``Plant()`` loads the packaged ``humanoid_twin/models/scene.xml`` and resets to the ``stand``
+    keyframe with every PWM off (limp servos, as at power-up). ``seed`` fixes the potentiometer
+    offsets (drawn once per plant) and the sensor noise streams (restarted by ``reset``).
+    ``clock`` (or ``bind_clock``) puts physics time under the twin's clock: the plant then steps
+    itself before any access.
     """
 
     def __init__(self, model_path: str | Path | None = None, *, seed: int = 0, clock: Any = None) -> None:
-        path = Path(model_path) if model_path is not None else DEFAULT_MODEL
+        _route_mujoco_warnings()
+        given = Path(model_path) if model_path is not None else None
+        path = given if given is not None else DEFAULT_MODEL
         self.model_path = path
-        self.model, self.load_warnings = _load_model(path)
+        self.model, self.load_warnings = _load_model(given)
         self.data = mujoco.MjData(self.model)
         self.seed = int(seed)
         m = self.model

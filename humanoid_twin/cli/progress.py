@@ -1,0 +1,102 @@
+"""Progress of ``humanoid-twin run`` on stderr, driven by virtual time.
+
+Two phases: the boot (its length is not known in advance: the Slaves calibrate, ~2.65 s of virtual
+time), then the run up to its end time. On a terminal: a tqdm bar (tqdm's own throttling, at most
+~10 redraws a second), simulated seconds done / total, wall time elapsed and remaining (ETA) and the
+real-time factor (simulated seconds per wall second). On anything else (a CI log, a file, a pipe):
+one plain line when the boot starts and ends, at every 10 % of the run and at the end, never a
+carriage return.
+"""
+
+from __future__ import annotations
+
+import time
+from typing import Any, TextIO
+
+TICK_S = 0.1      # the run calls update() every 0.1 s of virtual time (scenarios.run)
+_BAR_FORMAT = ("{desc}: {percentage:3.0f}%|{bar}| {n:.1f}/{total:.1f} s simulated "
+               "[{elapsed}<{remaining} wall, {rate_fmt}]")
+_BOOT_FORMAT = "{desc}: {n:.1f} s simulated [{elapsed} wall]"
+
+
+class RunProgress:
+    """``update(t_s, end_s)``: ``end_s`` None while booting, else the run's end time (s)."""
+
+    def __init__(self, label: str, stream: TextIO) -> None:
+        self.label = label
+        self.stream = stream
+        self.tty = bool(getattr(stream, "isatty", lambda: False)())
+        self._t0 = time.perf_counter()
+        self._bar: Any = None
+        self._boot_bar: Any = None
+        self._boot_end_s: float | None = None
+        self._next_pct = 10
+        self._last: tuple[float, float | None] | None = None
+
+    def update(self, t_s: float, end_s: float | None) -> None:
+        """Virtual time ``t_s`` reached (called every 0.1 s of virtual time)."""
+        first = self._last is None
+        self._last = (t_s, end_s)
+        if end_s is None:
+            if first and not self.tty:
+                self._line("booting (the Slaves calibrate their servos, ~2.7 s simulated)")
+            if self.tty:
+                if self._boot_bar is None:
+                    self._boot_bar = self._tqdm(None, f"{self.label}: boot", _BOOT_FORMAT)
+                self._boot_bar.update(t_s - self._boot_bar.n)
+            return
+        if self._boot_end_s is None:
+            self._boot_done(t_s, end_s)
+        if self.tty:
+            if self._bar is None:
+                self._bar = self._tqdm(end_s, self.label, _BAR_FORMAT, initial=t_s)  # after the boot
+            self._bar.update(min(t_s, end_s) - self._bar.n)
+            return
+        t_s = min(t_s, end_s)
+        pct = 100.0 * t_s / end_s if end_s > 0 else 100.0
+        if pct + 1e-9 >= self._next_pct:
+            self._next_pct = 10 * int(pct // 10) + 10
+            self._line(f"{pct:3.0f}% {t_s:.1f}/{end_s:.1f} s simulated, " + self._times(t_s, end_s))
+
+    def close(self) -> None:
+        """Close the bars (a terminal) or write the last line, where the run stopped (otherwise)."""
+        for bar in (self._boot_bar, self._bar):
+            if bar is not None:
+                bar.close()
+        self._boot_bar = self._bar = None
+        if not self.tty and self._last is not None and self._last[1] is not None:
+            t_s, end_s = self._last
+            if self._next_pct <= 100:          # the 100 % line was not written yet
+                if t_s + TICK_S >= end_s - 1e-9:   # the last tick before the end: the run got there
+                    t_s = end_s
+                pct = 100.0 * t_s / end_s if end_s > 0 else 100.0
+                self._line(f"{pct:3.0f}% {t_s:.1f}/{end_s:.1f} s simulated, "
+                           f"{time.perf_counter() - self._t0:.1f} s wall")
+            self._next_pct = 110
+
+    def _boot_done(self, t_s: float, end_s: float) -> None:
+        self._boot_end_s = t_s
+        if self._boot_bar is not None:
+            self._boot_bar.close()
+            self._boot_bar = None
+        if not self.tty:
+            pct = 100.0 * t_s / end_s if end_s > 0 else 100.0
+            self._next_pct = 10 * int(pct // 10) + 10
+            self._line(f"booted by {t_s:.1f} s simulated ({time.perf_counter() - self._t0:.1f} s wall); "
+                       f"the run ends at {end_s:.1f} s")
+
+    def _times(self, t_s: float, end_s: float) -> str:
+        wall = time.perf_counter() - self._t0
+        rate = t_s / wall if wall > 0 else float("inf")
+        eta = (end_s - t_s) / rate if rate > 0 else float("nan")
+        return f"{wall:.1f} s wall, ETA {eta:.1f} s ({rate:.1f}x real time)"
+
+    def _line(self, text: str) -> None:
+        self.stream.write(f"{self.label}: {text}\n")
+        self.stream.flush()
+
+    def _tqdm(self, total: float | None, desc: str, fmt: str, initial: float = 0.0) -> Any:
+        from tqdm import tqdm
+
+        return tqdm(total=total, desc=desc, file=self.stream, unit="s", initial=initial,
+                    bar_format=fmt, leave=False, dynamic_ncols=True)
