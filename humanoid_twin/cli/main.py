@@ -18,6 +18,7 @@ import contextlib
 import json
 import math
 import os
+import shutil
 import signal
 import sys
 from pathlib import Path
@@ -214,6 +215,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 MAX_DURATION_S = 86_400.0   # one simulated day: --duration beyond this is refused
+MIN_FREE_BYTES = 8 * 2**20  # a run's outputs need at least this much free disk (a full disk: exit 2)
 SEED_MAX = 2**32 - 1        # seeds are 0..2**32-1 (numpy's range)
 EXIT_INTERRUPTED = 130      # SIGINT (Ctrl-C)
 EXIT_TERMINATED = 143       # SIGTERM (timeout, CI runners, docker stop)
@@ -246,6 +248,10 @@ class _Outputs:
         _check_writable(path, what)
         path = path.expanduser()
         # the format follows the suffixes, kept at the end of the temporary name
+        free = shutil.disk_usage(path.resolve().parent).free
+        if free < MIN_FREE_BYTES:
+            raise _usage_error(f"{what} {path}: only {free // 1024} kB free on that disk "
+                               f"(a run needs at least {MIN_FREE_BYTES // 2**20} MB)")
         tmp = path.with_name(f".partial-{os.getpid()}-{path.name}")
         try:
             os.close(os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o644))
@@ -321,9 +327,9 @@ def cmd_run(args: argparse.Namespace) -> int:
         except OSError:
             pass                          # the writability check below says it in one line
     outputs = _Outputs()
-    out_tmp = outputs.add("out", out, "--out") if out is not None else None
-    can_tmp = outputs.add("can_log", args.can_log, "--can-log") if args.can_log is not None else None
     try:
+        out_tmp = outputs.add("out", out, "--out") if out is not None else None
+        can_tmp = outputs.add("can_log", args.can_log, "--can-log") if args.can_log is not None else None
         return _run(args, outputs, out_tmp, can_tmp)
     finally:
         outputs.discard()       # whatever was not committed
