@@ -60,6 +60,10 @@ class ScenarioError(RuntimeError):
     """A scenario could not run (the twin did not boot, a request failed ...)."""
 
 
+class ScenarioInputError(ScenarioError):
+    """The options ask for something the run cannot do (a ``--duration`` shorter than the boot)."""
+
+
 class BootError(ScenarioError):
     """:func:`boot` failed; ``port`` is the host end of the link, open (the run may go on)."""
 
@@ -314,6 +318,10 @@ def run(opts: RunOptions, on_progress: Callable[[float, float | None], None] | N
             H = exc.port
             host_error = f"boot: {exc.__cause__}"     # the supervisor stopped the boot: the run goes on
         boot_s = twin.now_s
+        if opts.duration is not None and opts.duration < boot_s:
+            raise ScenarioInputError(
+                f"--duration {opts.duration:g} is shorter than the boot ({boot_s:.3f} simulated seconds "
+                "from power-on): give at least that")
         the_plan = spec.plan(opts.T, opts.motion, opts.perna)
         if opts.control is not None:
             the_plan = the_plan.with_control(CONTROL_CHOICES[opts.control], split=spec.double_support)
@@ -405,5 +413,5 @@ def _finite(x: float) -> float | None:
 
 
 __all__ = ["RunOptions", "Monitor", "Plan", "Scenario", "REGISTRY", "scenario", "get_scenario", "boot",
-           "hold", "BootError", "ScenarioError", "SCENARIOS", "CONTROL_CHOICES", "plan",
+           "hold", "BootError", "ScenarioError", "ScenarioInputError", "SCENARIOS", "CONTROL_CHOICES", "plan",
            "run", "tilt_profile"]

@@ -27,7 +27,7 @@ from humanoid_twin.host.motion import exe_traj
 from humanoid_twin.host.planners import GAINS, HOLD, L_LEG, levantar_perna
 from humanoid_twin.host.timebase import sleep as host_sleep
 from humanoid_twin.monitor import Monitor
-from humanoid_twin.protocol.rs232 import ControlType
+from humanoid_twin.protocol.wire import ControlType
 from humanoid_twin.scenarios import RunOptions, boot, run
 from humanoid_twin.slave import servo as sv
 from humanoid_twin.slave.data import jacobianMatrix
