@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Generate ``humanoid_twin/protocol/humanoid_twin.dbc`` with the cantools API.
 
-The DBC describes the Master <-> Slave CAN traffic of seed 002 slides 18-20 (SPEC.md section 3):
+The DBC describes the Master <-> Slave CAN traffic of seed 002 slides 18-20 (docs/protocol.md section 2):
 for each slave k = 1..8, ``Actuation1_S<k>`` / ``Actuation2_S<k>`` from MASTER to SCU<k> and
 ``Sensors1_S<k>`` / ``Sensors2_S<k>`` back. Identifiers come from ``canframes.can_id``; signal
 ranges are the ranges the codecs in ``humanoid_twin.protocol.canframes`` accept.

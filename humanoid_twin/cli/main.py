@@ -1,6 +1,6 @@
 """``humanoid-twin``: run a scenario headless, serve the twin to any serial client, view a recording.
 
-SPEC.md section 6 is the contract (scripts and CI depend on it):
+The command line is a contract (scripts and CI depend on it; docs/scenarios.md):
 
     humanoid-twin run SCENARIO [--duration S] [--T S] [--motion DEG] [--perna 1|2] [--out FILE.rrd]
                                [--can-log FILE] [--control none|locomotion|reaction|balance]
