@@ -231,7 +231,7 @@ def _flexao(T: float | None, motion: float | None, perna: int) -> Plan:
 
 @scenario("inclinar", double_support=True)
 def _inclinar(T: float | None, motion: float | None, perna: int) -> Plan:
-    """lateral lean: both legs roll sideways, feet flat (table 22); --motion = the foot lateral angle"""
+    """lateral lean: both legs roll sideways, feet flat (table 22); --motion = foot lateral angle, + = left"""
     default = DEFAULT_MOTION_DEG["inclinar"]
     return Plan(*inclinar(DEFAULT_T_S if T is None else T, default if motion is None else motion))
 
