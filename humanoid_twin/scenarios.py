@@ -94,7 +94,7 @@ def hold(H: Any, plan: Plan, scus: tuple[int, ...] = LEG_SCUS) -> None:
 
 @dataclass
 class RunOptions:
-    """The ``humanoid-twin run`` options (SPEC.md section 6)."""
+    """The ``humanoid-twin run`` options (docs/scenarios.md)."""
 
     scenario: str = "stand"
     duration: float | None = None
@@ -266,15 +266,18 @@ def tilt_profile(
     return profile
 
 
-def run(opts: RunOptions, on_progress: Callable[[float, float | None], None] | None = None
-        ) -> dict[str, Any]:
-    """Run one scenario headless and return the SPEC.md section 6 summary.
+def run(opts: RunOptions, on_progress: Callable[[float, float | None], None] | None = None,
+        on_twin: Callable[[Twin], None] | None = None) -> dict[str, Any]:
+    """Run one scenario headless and return its summary (docs/scenarios.md).
 
     ``on_progress(t_s, end_s)`` is called every 0.1 s of virtual time: ``end_s`` is None during
-    the boot (its length is not known in advance), then the run's end time."""
+    the boot (its length is not known in advance), then the run's end time. ``on_twin(twin)`` is
+    called once the twin is built, before anything is written (``run --viewer`` attaches there)."""
     spec = get_scenario(opts.scenario)
     twin = Twin(seed=opts.seed, can_interface=opts.can_interface, can_channel=opts.can_channel,
                 supervisor=opts.supervisor)
+    if on_twin is not None:
+        on_twin(twin)
     sup = twin.master.supervisor
     injector = FaultInjector(twin, opts.faults, opts.seed)
     if opts.laws:

@@ -1,4 +1,4 @@
-"""The CLI contract (SPEC.md section 6): commands, help, errors with exit code 2, the JSON summary."""
+"""The CLI contract (docs/scenarios.md, README): commands, help, errors with exit code 2, the JSON summary."""
 
 from __future__ import annotations
 

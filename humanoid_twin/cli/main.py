@@ -1,6 +1,6 @@
 """``humanoid-twin``: run a scenario headless, serve the twin to any serial client, view a recording.
 
-SPEC.md section 6 is the contract (scripts and CI depend on it):
+The command line is a contract (scripts and CI depend on it; docs/scenarios.md):
 
     humanoid-twin run SCENARIO [--duration S] [--T S] [--motion DEG] [--perna 1|2] [--out FILE.rrd]
                                [--can-log FILE] [--control none|locomotion|reaction|balance]
@@ -176,6 +176,8 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--json", action="store_true", help="print the summary as one JSON object on the "
                      "last line of stdout")
     run.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
+    run.add_argument("--viewer", action="store_true", help="watch the run live in MuJoCo's own viewer, "
+                     "paced to real time (needs a display)")
     _add_can_options(run)
     add_fault_options(run)
     from humanoid_twin.controllers import add_controller_options
@@ -314,6 +316,13 @@ def _check_can_interface(args: argparse.Namespace) -> None:
 def cmd_run(args: argparse.Namespace) -> int:
     """``humanoid-twin run``."""
     _check_run_inputs(args)
+    if args.viewer:
+        from humanoid_twin.cli.live_viewer import LiveViewerError, check_display
+
+        try:
+            check_display()
+        except LiveViewerError as exc:
+            raise _usage_error(str(exc)) from None
     out = None if args.no_record else (args.out or Path(f"{args.scenario}.rrd"))
     if out is not None and out.suffix != ".rrd":
         raise _usage_error(f"--out {out}: a rerun recording must end in .rrd")
@@ -357,6 +366,12 @@ def _run(args: argparse.Namespace, outputs: _Outputs, out_tmp: Path | None, can_
         from humanoid_twin.cli.progress import RunProgress
 
         bar = RunProgress(args.scenario, sys.stderr)
+    live = None
+    viewer_errors: tuple[type[Exception], ...] = ()
+    if args.viewer:
+        from humanoid_twin.cli.live_viewer import LiveViewer, LiveViewerError
+
+        live, viewer_errors = LiveViewer(), (LiveViewerError,)
     previous_term = signal.getsignal(signal.SIGTERM)
 
     def _on_term(signum: int, frame: object) -> None:
@@ -364,12 +379,15 @@ def _run(args: argparse.Namespace, outputs: _Outputs, out_tmp: Path | None, can_
 
     signal.signal(signal.SIGTERM, _on_term)
     try:
-        summary = run(opts, on_progress=None if bar is None else bar.update)
+        summary = run(opts, on_progress=None if bar is None else bar.update,
+                      on_twin=None if live is None else live.attach)
     except ScenarioInputError as exc:
         raise _usage_error(str(exc)) from None
     except ScenarioError as exc:
         sys.stderr.write(f"humanoid-twin: {exc}\n")
         return 1
+    except viewer_errors as exc:        # the window could not open (nothing written yet)
+        raise _usage_error(str(exc)) from None
     except KeyboardInterrupt as exc:
         # the run closed its files on the way out: what was recorded is kept (valid files)
         outputs.commit()
@@ -385,6 +403,8 @@ def _run(args: argparse.Namespace, outputs: _Outputs, out_tmp: Path | None, can_
         signal.signal(signal.SIGTERM, previous_term)
         if bar is not None:
             bar.close()
+        if live is not None:
+            live.close()
     outputs.commit()
     if "out" in outputs.final:
         summary["recording"] = str(outputs.final["out"])
