@@ -23,9 +23,9 @@ SCU_NAMES: dict[int, str] = {
 N_SERVOS = 3
 N_SPECIAL_SENSORS = 4
 
-# Servo order per board (SPEC.md section 1: leg board 1 foot lateral, 2 foot front, 3 knee;
-# hip board 1 roll, 2 pitch, 3 yaw). Boards 5-8: docs/model.md. ``None`` = a bench servo
-# (a horn with no load, mounted inside the trunk), named ``<board>_spare``.
+# Servo order per board (humanoid_twin/models/README.md section 8: leg board 1 foot lateral,
+# 2 foot front, 3 knee; hip board 1 roll, 2 pitch, 3 yaw). Boards 5-8: the same section.
+# ``None`` = a bench servo (a horn with no load, mounted inside the trunk), named ``<board>_spare``.
 SERVO_JOINTS: dict[int, tuple[str, str, str]] = {
     1: ("r_ankle_roll", "r_ankle_pitch", "r_knee"),
     2: ("l_ankle_roll", "l_ankle_pitch", "l_knee"),

@@ -60,6 +60,10 @@ class ScenarioError(RuntimeError):
     """A scenario could not run (the twin did not boot, a request failed ...)."""
 
 
+class ScenarioInputError(ScenarioError):
+    """The options ask for something the run cannot do (a ``--duration`` shorter than the boot)."""
+
+
 class BootError(ScenarioError):
     """:func:`boot` failed; ``port`` is the host end of the link, open (the run may go on)."""
 
@@ -90,7 +94,7 @@ def hold(H: Any, plan: Plan, scus: tuple[int, ...] = LEG_SCUS) -> None:
 
 @dataclass
 class RunOptions:
-    """The ``humanoid-twin run`` options (SPEC.md section 6)."""
+    """The ``humanoid-twin run`` options (docs/scenarios.md)."""
 
     scenario: str = "stand"
     duration: float | None = None
@@ -227,7 +231,7 @@ def _flexao(T: float | None, motion: float | None, perna: int) -> Plan:
 
 @scenario("inclinar", double_support=True)
 def _inclinar(T: float | None, motion: float | None, perna: int) -> Plan:
-    """lateral lean: both legs roll sideways, feet flat (table 22); --motion = the foot lateral angle"""
+    """lateral lean: both legs roll sideways, feet flat (table 22); --motion = foot lateral angle, + = left"""
     default = DEFAULT_MOTION_DEG["inclinar"]
     return Plan(*inclinar(DEFAULT_T_S if T is None else T, default if motion is None else motion))
 
@@ -262,15 +266,18 @@ def tilt_profile(
     return profile
 
 
-def run(opts: RunOptions, on_progress: Callable[[float, float | None], None] | None = None
-        ) -> dict[str, Any]:
-    """Run one scenario headless and return the SPEC.md section 6 summary.
+def run(opts: RunOptions, on_progress: Callable[[float, float | None], None] | None = None,
+        on_twin: Callable[[Twin], None] | None = None) -> dict[str, Any]:
+    """Run one scenario headless and return its summary (docs/scenarios.md).
 
     ``on_progress(t_s, end_s)`` is called every 0.1 s of virtual time: ``end_s`` is None during
-    the boot (its length is not known in advance), then the run's end time."""
+    the boot (its length is not known in advance), then the run's end time. ``on_twin(twin)`` is
+    called once the twin is built, before anything is written (``run --viewer`` attaches there)."""
     spec = get_scenario(opts.scenario)
     twin = Twin(seed=opts.seed, can_interface=opts.can_interface, can_channel=opts.can_channel,
                 supervisor=opts.supervisor)
+    if on_twin is not None:
+        on_twin(twin)
     sup = twin.master.supervisor
     injector = FaultInjector(twin, opts.faults, opts.seed)
     if opts.laws:
@@ -311,6 +318,10 @@ def run(opts: RunOptions, on_progress: Callable[[float, float | None], None] | N
             H = exc.port
             host_error = f"boot: {exc.__cause__}"     # the supervisor stopped the boot: the run goes on
         boot_s = twin.now_s
+        if opts.duration is not None and opts.duration < boot_s:
+            raise ScenarioInputError(
+                f"--duration {opts.duration:g} is shorter than the boot ({boot_s:.3f} simulated seconds "
+                "from power-on): give at least that")
         the_plan = spec.plan(opts.T, opts.motion, opts.perna)
         if opts.control is not None:
             the_plan = the_plan.with_control(CONTROL_CHOICES[opts.control], split=spec.double_support)
@@ -402,5 +413,5 @@ def _finite(x: float) -> float | None:
 
 
 __all__ = ["RunOptions", "Monitor", "Plan", "Scenario", "REGISTRY", "scenario", "get_scenario", "boot",
-           "hold", "BootError", "ScenarioError", "SCENARIOS", "CONTROL_CHOICES", "plan",
+           "hold", "BootError", "ScenarioError", "ScenarioInputError", "SCENARIOS", "CONTROL_CHOICES", "plan",
            "run", "tilt_profile"]

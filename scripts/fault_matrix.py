@@ -1,11 +1,12 @@
 """Fault matrix: every injected fault kind x stand / flexao / levantar_perna -> what the Master's
 supervisor detected, how fast, the final mode, and whether the robot fell (docs/supervisor.md).
 
-    python scripts/fault_matrix.py [--out docs/fault_matrix.md] [--processes 2] [--seed 0]
+    .venv/bin/python scripts/fault_matrix.py [--out out/fault_matrix.md] [--processes 2] [--seed 0]
 
 Each cell is one seeded ``humanoid-twin run`` through the API (the same as ``run SCENARIO --fault
 SPEC``); the fault starts at T0 = 3.0 s simulated (the boot ends at ~2.65 s). Latency = the first
-detected fault's time minus T0. Writes a markdown table (committed as docs/fault_matrix.md).
+detected fault's time minus T0. Writes a markdown table into the scratch folder ``out/`` by
+default; ``--out docs/fault_matrix.md`` regenerates the committed copy.
 """
 
 from __future__ import annotations
@@ -60,7 +61,8 @@ def cell(job: tuple[str, str | None, int]) -> dict:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--out", type=Path, default=Path("docs/fault_matrix.md"))
+    ap.add_argument("--out", type=Path, default=Path("out/fault_matrix.md"),
+                    help="markdown table to write (default out/; docs/fault_matrix.md: the committed copy)")
     ap.add_argument("--processes", type=int, default=2)
     ap.add_argument("--seed", type=int, default=0)
     args = ap.parse_args()
@@ -89,6 +91,7 @@ def main() -> None:
         lat = "" if r["latency_ms"] is None else str(r["latency_ms"])
         lines.append(f"| `{r['spec']}` | {r['scenario']} | {r['detected']} | {lat} | {r['more']} | "
                      f"{r['mode']} | {'yes' if r['fell'] else 'no'} | {r['host_error']} |")
+    args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text("\n".join(lines) + "\n", encoding="utf-8")
     print(f"wrote {args.out} ({len(rows)} runs, {wall:.0f} s)")
 

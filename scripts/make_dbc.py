@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Generate ``humanoid_twin/protocol/humanoid_twin.dbc`` with the cantools API.
 
-The DBC describes the Master <-> Slave CAN traffic of seed 002 slides 18-20 (SPEC.md section 3):
+The DBC describes the Master <-> Slave CAN traffic of seed 002 slides 18-20 (docs/protocol.md section 2):
 for each slave k = 1..8, ``Actuation1_S<k>`` / ``Actuation2_S<k>`` from MASTER to SCU<k> and
 ``Sensors1_S<k>`` / ``Sensors2_S<k>`` back. Identifiers come from ``canframes.can_id``; signal
 ranges are the ranges the codecs in ``humanoid_twin.protocol.canframes`` accept.
@@ -27,6 +27,7 @@ if str(REPO) not in sys.path:  # generate from this checkout, installed or not
 from humanoid_twin.hardware import SCU_NAMES  # noqa: E402
 from humanoid_twin.protocol import canframes as cf  # noqa: E402
 from humanoid_twin.protocol.rs232 import ControlType  # noqa: E402
+from humanoid_twin.protocol.wire import ErrorState  # noqa: E402
 
 DBC_PATH = REPO / "humanoid_twin" / "protocol" / cf.DBC_RESOURCE
 
@@ -43,6 +44,10 @@ SECTIONS = {
 }
 
 CONTROL_CHOICES = OrderedDict((int(t), t.name) for t in ControlType)
+CAN_STATE_CHOICES = OrderedDict((int(e), e.label) for e in ErrorState)
+# The four force sensors of a foot, in the order of Sensors 2 bytes 4-7 (Data1..4 of slide 20):
+# seed 000 table 12's order, front-left, front-right, rear-left, rear-right (docs/model.md).
+FORCE_NAMES = {"FL": "front-left", "FR": "front-right", "RL": "rear-left", "RR": "rear-right"}
 
 
 def _sig(
@@ -85,6 +90,18 @@ def _sflags(receiver: str) -> list[Signal]:
             "SFlagsSource", 0, bit=4, length=4, comment="SFlags bits 7-4: source address", receiver=receiver
         ),
         _sig("SFlagsIndex", 0, bit=3, length=1, comment="SFlags bit 3: packet index", receiver=receiver),
+    ]
+
+
+def _sflags1_supervisor() -> list[Signal]:
+    """Sensors 1 SFlags bits 2-0, zero in seed 002 slide 20: the Slave's supervisor flags
+    (docs/supervisor.md, ``canframes.SFLAGS_WATCHDOG`` / ``SFLAGS_CAN_STATE``)."""
+    return [
+        _sig("Watchdog", 0, bit=cf.SFLAGS_WATCHDOG.bit_length() - 1, length=1, receiver="MASTER",
+             comment="SFlags bit 2: CAN watchdog, no actuation for 5 ticks, holding the last reference"),
+        _sig("CanState", 0, bit=0, length=cf.SFLAGS_CAN_STATE.bit_length(), receiver="MASTER",
+             maximum=int(ErrorState.BUS_OFF), choices=CAN_STATE_CHOICES,
+             comment="SFlags bits 1-0: the Slave's CAN error state since its last tick"),
     ]
 
 
@@ -137,6 +154,7 @@ def messages_for(k: int) -> list[Message]:
     ]
     sen1 = [
         *_sflags("MASTER"),
+        *_sflags1_supervisor(),
         *(
             _sig(
                 f"Pos{i}",
@@ -178,6 +196,8 @@ def messages_for(k: int) -> list[Message]:
     ]
     sen2 = [
         *_sflags("MASTER"),
+        _sig("LawStopped", 0, bit=cf.SFLAGS2_LAW.bit_length() - 1, length=1, receiver="MASTER",
+             comment="SFlags bit 2: a control law of this Slave was stopped (docs/controllers.md)"),
         *(
             _sig(
                 f"Curr{i}",
@@ -190,8 +210,10 @@ def messages_for(k: int) -> list[Message]:
             for i in (1, 2, 3)
         ),
         *(
-            _sig(f"Data{i}", 3 + i, comment=f"special sensor {i} (foot force, 8-bit)", receiver="MASTER")
-            for i in (1, 2, 3, 4)
+            _sig(name, 4 + i, unit="count", receiver="MASTER",
+                 comment=f"Data{i + 1}: {where} foot force sensor (seed 000 table 12), 8-bit ADC counts; "
+                 "0 on boards without a foot")
+            for i, (name, where) in enumerate(FORCE_NAMES.items())
         ),
     ]
     a1, a2 = cf.ACTUATION_IDS[k]

@@ -9,8 +9,11 @@ recording, pauses the time cursor in the middle of the squat and asks the viewer
 screenshot (``rerun.experimental.ViewerClient``). Web: serves the same file with
 ``humanoid-twin view --web`` and photographs the page in headless Chromium. Everything listens on
 127.0.0.1 only and is stopped at the end. (Known limit: on a 2-core container without a GPU,
-Chromium 156's software WebGL left rerun's web viewer blank after its wasm loaded; the native
-shot is the one kept in docs/img/.) PNGs are reduced to a 256-colour palette with Pillow
+Debian's Chromium 156 leaves rerun's web viewer at "Loading Application Bundle... 100%": the wasm
+loads, the renderer never starts. Tried: --disable-gpu; --use-gl=angle --use-angle=swiftshader
+--enable-unsafe-swiftshader --ignore-gpu-blocklist; --headless and --headless=new; 60-90 s waits
+and --virtual-time-budget. The native shot is the one kept in docs/img/; the web viewer itself is
+tested by `view --web` answering HTTP 200 on loopback.) PNGs are reduced to a 256-colour palette with Pillow
 when it is installed.
 
 What it needs (Debian/Ubuntu, as root)::
@@ -21,6 +24,9 @@ Run it with the project's interpreter; no activated venv is needed (every tool i
 ``sys.executable -m ...``)::
 
     .venv/bin/python scripts/screenshot_viewer.py [--time 3.5] [--only native|web]
+
+The images go to the scratch folder ``out/`` by default; ``--out docs/img/rerun_view.png`` (and
+``--web-out docs/img/rerun_web.png``) regenerate the docs' copies.
 """
 
 from __future__ import annotations
@@ -130,9 +136,9 @@ def web_shot(rrd: Path, out: Path, size: str, tmp: Path, settle_s: float = 45.0)
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--out", type=Path, default=ROOT / "docs" / "img" / "rerun_view.png")
+    ap.add_argument("--out", type=Path, default=ROOT / "out" / "rerun_view.png")
     ap.add_argument("--time", type=float, default=3.5, help="sim_time of the screenshot, seconds")
-    ap.add_argument("--web-out", type=Path, default=ROOT / "docs" / "img" / "rerun_web.png")
+    ap.add_argument("--web-out", type=Path, default=ROOT / "out" / "rerun_web.png")
     ap.add_argument("--size", default="1600x1000", help="viewer window size in points")
     ap.add_argument("--only", choices=("native", "web"), help="take one of the two screenshots")
     args = ap.parse_args()

@@ -4,7 +4,7 @@ Every scenario test is paired with the same run with the controller off, and ass
 off run fails (falls, or its CoP reaches the edge of the support polygon: a margin <= 0 means
 the foot rolled onto an edge of pads), so the file itself shows each test can fail. The runs
 go through the real chain (host over pyserial -> Master -> CAN -> Slaves -> MuJoCo); one pair
-goes through the CLI (``humanoid-twin run ... --json --no-record``, the SPEC section 6 contract).
+goes through the CLI (``humanoid-twin run ... --json --no-record``, the CLI contract of docs/scenarios.md).
 Numbers: docs/balance.md. About 30 s on this machine.
 """
 
@@ -27,7 +27,7 @@ from humanoid_twin.host.motion import exe_traj
 from humanoid_twin.host.planners import GAINS, HOLD, L_LEG, levantar_perna
 from humanoid_twin.host.timebase import sleep as host_sleep
 from humanoid_twin.monitor import Monitor
-from humanoid_twin.protocol.rs232 import ControlType
+from humanoid_twin.protocol.wire import ControlType
 from humanoid_twin.scenarios import RunOptions, boot, run
 from humanoid_twin.slave import servo as sv
 from humanoid_twin.slave.data import jacobianMatrix

@@ -1,4 +1,4 @@
-"""The CLI contract (SPEC.md section 6): commands, help, errors with exit code 2, the JSON summary."""
+"""The CLI contract (docs/scenarios.md, README): commands, help, errors with exit code 2, the JSON summary."""
 
 from __future__ import annotations
 
@@ -35,7 +35,7 @@ def test_help_on_every_command(cmd):
         (["run", "stand", "--control", "pid"], "invalid choice: 'pid'"),
         (["run", "stand", "--out", "/nonexistent-dir/x.rrd"], "does not exist"),
         (["run", "stand", "--out", "x.txt"], "must end in .rrd"),
-        (["run", "stand", "--can-log", "frames.xyz", "--no-record"], "no writer for '.xyz'"),
+        (["run", "stand", "--can-log", "frames.xyz", "--no-record"], "unknown format '.xyz'"),
         (["serve", "--pty", "--tcp", "5000"], "not allowed with argument"),
         (["view", "missing.rrd"], "no such recording"),
     ],

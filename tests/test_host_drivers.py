@@ -370,3 +370,24 @@ def test_nothing_in_the_drivers_needs_the_in_process_port(booted_twin):
     assert not hasattr(port, "virtual_time_s")
     r = readjoint(port, 1, 0)
     assert r.error == ErrorCode.UNEXPECTED_RESPONSE and r.tries == 3
+
+
+def test_initcom_turns_a_refused_termios_setting_into_port_error():
+    from humanoid_twin.host.drivers import PortError
+
+    """A raw pty already at 115200 refuses PARENB (EINVAL, Linux): one PortError, no termios.error."""
+    import os
+    import termios
+    import tty
+
+    master, slave = os.openpty()
+    try:
+        tty.setraw(slave, termios.TCSANOW)
+        name = os.ttyname(slave)
+        H, _ = initcom(name, 115200)          # the first open changes the speed: accepted
+        H.close()
+        with pytest.raises(PortError, match="8E1"):
+            initcom(name, 115200)             # same speed, parity asked again: refused
+    finally:
+        os.close(master)
+        os.close(slave)

@@ -37,7 +37,7 @@ from humanoid_twin.host import drivers as drv
 from humanoid_twin.host.planners import ANKLE_PITCH, ANKLE_ROLL, HIP_PITCH, HIP_ROLL, HIP_YAW, KNEE
 from humanoid_twin.host.tables import TABLES_PATH, TablesError
 from humanoid_twin.plant import DEFAULT_MODEL
-from humanoid_twin.protocol.rs232 import ControlType
+from humanoid_twin.protocol.wire import ControlType
 
 R_LEG, L_LEG, R_HIP, L_HIP = 0, 1, 2, 3
 LOCO, BAL = int(ControlType.LOCOMOTION_CONTROL), int(ControlType.BALANCE_CONTROL)

@@ -17,6 +17,7 @@ from humanoid_twin.protocol import canframes as cf
 from humanoid_twin.protocol import rs232
 from humanoid_twin.protocol.canframes import PayloadError
 from humanoid_twin.protocol.rs232 import FrameError, Op, Request
+from humanoid_twin.protocol.wire import ErrorState
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -528,12 +529,16 @@ def test_dbc_decodes_actuation2(db, k, ki, kp, kd1, kd2) -> None:
 
 @given(
     st.integers(1, 8), three_i8, three_i8, st.booleans(), st.booleans(), st.booleans(), st.booleans(),
-    st.booleans(), flags3,
+    st.booleans(), flags3, st.booleans(), st.sampled_from(list(ErrorState)),
 )  # fmt: skip
-def test_dbc_decodes_sensors1(db, k, pos, speed, pwm, calib, deadline, fin_all, fin_one, fin) -> None:
-    data = cf.pack_sensors1(k, pos, speed, cf.status_byte(pwm, calib, deadline, fin_all, fin_one, fin))
+def test_dbc_decodes_sensors1(db, k, pos, speed, pwm, calib, deadline, fin_all, fin_one, fin, watchdog,
+                              can_state) -> None:
+    flags = (cf.SFLAGS_WATCHDOG if watchdog else 0) | int(can_state)
+    status = cf.status_byte(pwm, calib, deadline, fin_all, fin_one, fin)
+    data = cf.pack_sensors1(k, pos, speed, status, flags)
     sig = db.decode_message(cf.SENSOR_IDS[k][0], data)
     assert (sig["SFlagsSource"], sig["SFlagsIndex"]) == (k, 0)
+    assert (sig["Watchdog"], str(sig["CanState"])) == (watchdog, can_state.label)
     assert [sig[f"Pos{i}"] for i in (1, 2, 3)] == list(pos)
     assert [sig[f"Speed{i}"] for i in (1, 2, 3)] == list(speed)
     assert (sig["PWM"], sig["Calib"], sig["Deadline"], sig["FinAll"], sig["FinOne"]) == (
@@ -543,13 +548,13 @@ def test_dbc_decodes_sensors1(db, k, pos, speed, pwm, calib, deadline, fin_all, 
     assert db.encode_message(cf.SENSOR_IDS[k][0], sig) == data
 
 
-@given(st.integers(1, 8), st.tuples(*[st.integers(0, 100)] * 3), st.tuples(u8, u8, u8, u8))
-def test_dbc_decodes_sensors2(db, k, curr, data4) -> None:
-    data = cf.pack_sensors2(k, curr, data4)
+@given(st.integers(1, 8), st.tuples(*[st.integers(0, 100)] * 3), st.tuples(u8, u8, u8, u8), st.booleans())
+def test_dbc_decodes_sensors2(db, k, curr, data4, law_stopped) -> None:
+    data = cf.pack_sensors2(k, curr, data4, law_stopped)
     sig = db.decode_message(cf.SENSOR_IDS[k][1], data)
-    assert (sig["SFlagsSource"], sig["SFlagsIndex"]) == (k, 1)
+    assert (sig["SFlagsSource"], sig["SFlagsIndex"], sig["LawStopped"]) == (k, 1, law_stopped)
     assert [sig[f"Curr{i}"] for i in (1, 2, 3)] == list(curr)
-    assert [sig[f"Data{i}"] for i in (1, 2, 3, 4)] == list(data4)
+    assert [sig[name] for name in ("FL", "FR", "RL", "RR")] == list(data4)   # table 12 order
     assert db.encode_message(cf.SENSOR_IDS[k][1], sig) == data
 
 
@@ -568,7 +573,6 @@ def test_check_scu_takes_1_to_8_and_names_what_was_wrong():
 
 def test_error_states_name_the_bus_states_and_carry_the_wire_codes():
     from humanoid_twin.bus.confinement import BUS_OFF, ERROR_ACTIVE, ERROR_PASSIVE, ERROR_STATE_CODE
-    from humanoid_twin.protocol.wire import ErrorState
 
     assert [ErrorState.from_label(x) for x in (ERROR_ACTIVE, ERROR_PASSIVE, BUS_OFF)] == [0, 1, 2]
     assert ERROR_STATE_CODE == {"error-active": 0, "error-passive": 1, "bus-off": 2}

@@ -347,7 +347,7 @@ def test_can_log_decodes_with_the_dbc(run):
     assert all(f.dst == 0 for f in sensors)
 
 
-@pytest.mark.parametrize("suffix", [".asc", ".log", ".blf", ".csv", ".trc", ".asc.gz"])
+@pytest.mark.parametrize("suffix", [".asc", ".log", ".blf", ".csv", ".trc", ".db", ".asc.gz"])
 def test_can_log_formats(tmp_path, suffix):
     path = tmp_path / f"bus{suffix}"
     with Twin(seed=0) as twin:
@@ -423,3 +423,12 @@ def test_columns_have_rerun_s_own_arrow_types(run, tmp_path):
     ref = types(ref_path, {"a": "scalars", "b": "transform", "c": "points2d", "d": "radii",
                            "e": "points3d", "f": "strips"})
     assert ours == ref
+
+
+def test_can_log_txt_has_one_line_per_frame(tmp_path):
+    """``.txt`` (python-can's Printer) has no reader: count its lines against the frames."""
+    path = tmp_path / "bus.txt"
+    with Twin(seed=0) as twin, CanLog(path, twin.network) as log:
+        twin.run_for(0.05)
+    lines = path.read_text().splitlines()
+    assert len(lines) == log.frames > 0

@@ -87,7 +87,7 @@ def test_a_failing_point_is_a_row_with_its_error(tmp_path, capsys):
     assert rc == 0 and "2 runs, 1 failed" in stdout
     ok, bad = _rows(out)
     assert ok["can-interface"] == "virtual" and ok["error"] == "" and ok["fell"] == "False"
-    assert bad["can-interface"] == "socketcan" and bad["error"].startswith("RuntimeError: exit 1")
+    assert bad["can-interface"] == "socketcan" and bad["error"].startswith("RuntimeError: exit 2")
     assert bad["fell"] == ""
 
 

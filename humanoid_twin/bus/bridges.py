@@ -285,10 +285,6 @@ class PtyBridge(_Bridge):
             os.close(self._master_fd)
 
 
-def _family(host: str) -> socket.AddressFamily:
-    return socket.AF_INET6 if ":" in host else socket.AF_INET
-
-
 class TcpBridge(_Bridge):
     """A TCP server for one client at a time; ``port_name`` is ``socket://HOST:PORT``.
 

@@ -1,7 +1,7 @@
 """The CAN wire in virtual time: arbitration by ID, frame bit times, error confinement.
 
 ``CanNetwork`` is the 1 Mbit/s bus between the Master and the 8 Slaves (seed 002 slides 13-30,
-SPEC.md section 3). Each board attaches one ``CanController`` (its PIC18F258 CAN module: 3 TX
+docs/buses.md). Each board attaches one ``CanController`` (its PIC18F258 CAN module: 3 TX
 buffers, the acceptance mask/filters of slide 23 as python-can ``can_filters``, TEC/REC and the
 error states). Every controller owns a real python-can bus: by default the project's own
 ``humanoid_twin`` interface (:mod:`humanoid_twin.bus.twin_bus`), or python-can's ``virtual`` or
@@ -164,7 +164,7 @@ class CanController:
 
     @property
     def error_state_code(self) -> int:
-        """0 error-active, 1 error-passive, 2 bus-off (the ERRSTATE byte of SPEC.md section 2)."""
+        """0 error-active, 1 error-passive, 2 bus-off (ERRSTATE of the CAN status, docs/protocol.md)."""
         return ERROR_STATE_CODE[self.state]
 
     # -- receive interrupt ---------------------------------------------------------------------

@@ -1,6 +1,6 @@
 """``humanoid-twin``: run a scenario headless, serve the twin to any serial client, view a recording.
 
-SPEC.md section 6 is the contract (scripts and CI depend on it):
+The command line is a contract (scripts and CI depend on it; docs/scenarios.md):
 
     humanoid-twin run SCENARIO [--duration S] [--T S] [--motion DEG] [--perna 1|2] [--out FILE.rrd]
                                [--can-log FILE] [--control none|locomotion|reaction|balance]
@@ -14,9 +14,11 @@ A bad flag, an unknown scenario or an unwritable output path: one line on stderr
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import math
 import os
+import shutil
 import signal
 import sys
 from pathlib import Path
@@ -174,6 +176,8 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--json", action="store_true", help="print the summary as one JSON object on the "
                      "last line of stdout")
     run.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
+    run.add_argument("--viewer", action="store_true", help="watch the run live in MuJoCo's own viewer, "
+                     "paced to real time (needs a display)")
     _add_can_options(run)
     add_fault_options(run)
     from humanoid_twin.controllers import add_controller_options
@@ -212,6 +216,17 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+MAX_DURATION_S = 86_400.0   # one simulated day: --duration beyond this is refused
+MIN_FREE_BYTES = 8 * 2**20  # a run's outputs need at least this much free disk (a full disk: exit 2)
+SEED_MAX = 2**32 - 1        # seeds are 0..2**32-1 (numpy's range)
+EXIT_INTERRUPTED = 130      # SIGINT (Ctrl-C)
+EXIT_TERMINATED = 143       # SIGTERM (timeout, CI runners, docker stop)
+
+
+class _Terminated(KeyboardInterrupt):
+    """SIGTERM, raised where the run is, so that it closes its files as Ctrl-C does."""
+
+
 def _check_writable(path: Path, what: str) -> None:
     parent = path.expanduser().resolve().parent
     if path.exists() and path.is_dir():
@@ -222,27 +237,118 @@ def _check_writable(path: Path, what: str) -> None:
         raise _usage_error(f"{what} {path} is not writable")
 
 
+class _Outputs:
+    """The run's files are written under temporary names next to their final ones and renamed at
+    the end: a failed run never replaces an existing file. Each temporary file is created up
+    front (an unwritable place is found before the run: exit 2)."""
+
+    def __init__(self) -> None:
+        self.final: dict[str, Path] = {}
+        self.temp: dict[str, Path] = {}
+
+    def add(self, key: str, path: Path, what: str) -> Path:
+        _check_writable(path, what)
+        path = path.expanduser()
+        # the format follows the suffixes, kept at the end of the temporary name
+        free = shutil.disk_usage(path.resolve().parent).free
+        if free < MIN_FREE_BYTES:
+            raise _usage_error(f"{what} {path}: only {free // 1024} kB free on that disk "
+                               f"(a run needs at least {MIN_FREE_BYTES // 2**20} MB)")
+        tmp = path.with_name(f".partial-{os.getpid()}-{path.name}")
+        try:
+            os.close(os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o644))
+        except OSError as exc:
+            self.discard()
+            raise _usage_error(f"{what} {path}: cannot write there: {exc.strerror or exc}") from None
+        self.final[key], self.temp[key] = path, tmp
+        return tmp
+
+    def commit(self) -> None:
+        for key, tmp in self.temp.items():
+            if tmp.exists():
+                os.replace(tmp, self.final[key])
+        self.temp.clear()
+
+    def discard(self) -> None:
+        for tmp in self.temp.values():
+            with contextlib.suppress(OSError):
+                tmp.unlink()
+        self.temp.clear()
+
+
+def _check_run_inputs(args: argparse.Namespace) -> None:
+    """Every value of ``run`` checked before anything runs or is written (one line, exit 2)."""
+    from humanoid_twin.plant.plant import TILT_MAX_DEG
+    from humanoid_twin.scenarios import plan
+
+    if args.no_record and args.out is not None:
+        raise _usage_error(f"--no-record and --out {args.out} contradict each other: drop one")
+    if args.duration is not None and args.duration > MAX_DURATION_S:
+        raise _usage_error(f"--duration {args.duration:g}: at most {MAX_DURATION_S:g} simulated seconds")
+    if not 0 <= args.seed <= SEED_MAX:
+        raise _usage_error(f"--seed {args.seed}: must be 0..{SEED_MAX}")
+    if abs(args.tilt) > TILT_MAX_DEG:
+        raise _usage_error(f"--tilt {args.tilt:g}: the platform tilts within +-{TILT_MAX_DEG:g} degrees")
+    try:   # the planners' own limits (T fits one byte of 20 ms ticks, each joint's range ...)
+        plan(args.scenario, T=args.T, motion=args.motion, perna=args.perna)
+    except ValueError as exc:
+        raise _usage_error(f"{args.scenario}: {exc}") from None
+    _check_can_interface(args)
+
+
+def _check_can_interface(args: argparse.Namespace) -> None:
+    import socket
+
+    if args.can_interface != "socketcan":
+        return
+    if not args.can_channel:
+        raise _usage_error("--can-interface socketcan needs --can-channel (e.g. vcan0)")
+    if not hasattr(socket, "AF_CAN"):
+        raise _usage_error("--can-interface socketcan: this system has no SocketCAN (AF_CAN)")
+    try:
+        with socket.socket(socket.AF_CAN, socket.SOCK_RAW, socket.CAN_RAW) as s:
+            s.bind((args.can_channel,))
+    except OSError as exc:
+        raise _usage_error(f"--can-interface socketcan --can-channel {args.can_channel}: cannot open it: "
+                           f"{exc.strerror or exc} (create it: ip link add dev vcan0 type vcan)") from None
+
+
 def cmd_run(args: argparse.Namespace) -> int:
     """``humanoid-twin run``."""
-    from humanoid_twin.faults import supervisor_config
-    from humanoid_twin.scenarios import RunOptions, ScenarioError, run
+    _check_run_inputs(args)
+    if args.viewer:
+        from humanoid_twin.cli.live_viewer import LiveViewerError, check_display
 
+        try:
+            check_display()
+        except LiveViewerError as exc:
+            raise _usage_error(str(exc)) from None
     out = None if args.no_record else (args.out or Path(f"{args.scenario}.rrd"))
-    if out is not None:
-        if out.suffix != ".rrd":
-            raise _usage_error(f"--out {out}: a rerun recording must end in .rrd")
-        _check_writable(out, "--out")
+    if out is not None and out.suffix != ".rrd":
+        raise _usage_error(f"--out {out}: a rerun recording must end in .rrd")
     if args.can_log is not None:
-        from can.io.logger import MESSAGE_WRITERS
+        from humanoid_twin.recording.can_log import CanLogError, check_log_path
 
-        from humanoid_twin.recording.can_log import log_suffix
+        try:
+            check_log_path(args.can_log)
+        except CanLogError as exc:
+            raise _usage_error(f"--can-log: {exc}") from None
+        except OSError:
+            pass                          # the writability check below says it in one line
+    outputs = _Outputs()
+    try:
+        out_tmp = outputs.add("out", out, "--out") if out is not None else None
+        can_tmp = outputs.add("can_log", args.can_log, "--can-log") if args.can_log is not None else None
+        return _run(args, outputs, out_tmp, can_tmp)
+    finally:
+        outputs.discard()       # whatever was not committed
 
-        suffix = log_suffix(args.can_log)
-        if suffix not in MESSAGE_WRITERS:
-            raise _usage_error(f"--can-log {args.can_log}: python-can has no writer for "
-                               f"{suffix or 'no suffix'!r} (use one of {' '.join(sorted(MESSAGE_WRITERS))})")
-        _check_writable(args.can_log, "--can-log")
+
+def _run(args: argparse.Namespace, outputs: _Outputs, out_tmp: Path | None, can_tmp: Path | None) -> int:
     from humanoid_twin.controllers import ControllerError, controller_run_options
+    from humanoid_twin.faults import supervisor_config
+    from humanoid_twin.recording.readback import RrdReadError
+    from humanoid_twin.scenarios import RunOptions, ScenarioError, ScenarioInputError, run
 
     try:
         controllers = controller_run_options(args)
@@ -251,7 +357,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     opts = RunOptions(
         **controllers,
         scenario=args.scenario, duration=args.duration, T=args.T, motion=args.motion, perna=args.perna,
-        out=out, can_log=args.can_log, control=args.control, tilt=args.tilt, seed=args.seed,
+        out=out_tmp, can_log=can_tmp, control=args.control, tilt=args.tilt, seed=args.seed,
         progress=not args.no_progress, can_interface=args.can_interface, can_channel=args.can_channel,
         faults=tuple(args.fault), supervisor=supervisor_config(args),
     )
@@ -260,18 +366,50 @@ def cmd_run(args: argparse.Namespace) -> int:
         from humanoid_twin.cli.progress import RunProgress
 
         bar = RunProgress(args.scenario, sys.stderr)
+    live = None
+    viewer_errors: tuple[type[Exception], ...] = ()
+    if args.viewer:
+        from humanoid_twin.cli.live_viewer import LiveViewer, LiveViewerError
+
+        live, viewer_errors = LiveViewer(), (LiveViewerError,)
+    previous_term = signal.getsignal(signal.SIGTERM)
+
+    def _on_term(signum: int, frame: object) -> None:
+        raise _Terminated()
+
+    signal.signal(signal.SIGTERM, _on_term)
     try:
-        summary = run(opts, on_progress=None if bar is None else bar.update)
+        summary = run(opts, on_progress=None if bar is None else bar.update,
+                      on_twin=None if live is None else live.attach)
+    except ScenarioInputError as exc:
+        raise _usage_error(str(exc)) from None
     except ScenarioError as exc:
         sys.stderr.write(f"humanoid-twin: {exc}\n")
         return 1
+    except viewer_errors as exc:        # the window could not open (nothing written yet)
+        raise _usage_error(str(exc)) from None
+    except KeyboardInterrupt as exc:
+        # the run closed its files on the way out: what was recorded is kept (valid files)
+        outputs.commit()
+        kept = " ".join(str(p) for p in outputs.final.values())
+        why = "terminated (SIGTERM)" if isinstance(exc, _Terminated) else "interrupted"
+        sys.stderr.write(f"humanoid-twin: {why}" + (f"; recorded so far: {kept}" if kept else "") + "\n")
+        return EXIT_TERMINATED if isinstance(exc, _Terminated) else EXIT_INTERRUPTED
+    except (OSError, RrdReadError) as exc:
+        # a full disk (or a file-size limit) while writing: one line, nothing replaced
+        sys.stderr.write(f"humanoid-twin: error: cannot write the outputs: {exc}; no file replaced\n")
+        return 1
     finally:
+        signal.signal(signal.SIGTERM, previous_term)
         if bar is not None:
             bar.close()
-    if out is not None:
-        summary["recording"] = str(out)
-    if args.can_log is not None:
-        summary["can_log"] = str(args.can_log)
+        if live is not None:
+            live.close()
+    outputs.commit()
+    if "out" in outputs.final:
+        summary["recording"] = str(outputs.final["out"])
+    if "can_log" in outputs.final:
+        summary["can_log"] = str(outputs.final["can_log"])
     for fault in summary.get("law_faults", ()):
         sys.stderr.write(f"humanoid-twin: control law {fault['law']} stopped on SCU {fault['scu']} at "
                          f"t={fault['t_s']} s: {fault['reason']}\n")
@@ -290,8 +428,14 @@ def _print_summary(summary: dict, as_json: bool) -> None:
 
 def cmd_serve(args: argparse.Namespace) -> int:
     """``humanoid-twin serve``: real-time pacing, the port on the first stdout line."""
+    from humanoid_twin.plant.plant import TILT_MAX_DEG
     from humanoid_twin.serve import ServeError, serve
 
+    if not 0 <= args.seed <= SEED_MAX:
+        raise _usage_error(f"--seed {args.seed}: must be 0..{SEED_MAX}")
+    if abs(args.tilt) > TILT_MAX_DEG:
+        raise _usage_error(f"--tilt {args.tilt:g}: the platform tilts within +-{TILT_MAX_DEG:g} degrees")
+    _check_can_interface(args)
     if args.tcp is not None:
         _check_bind(args.host, args.tcp)
     stop = {"flag": False}

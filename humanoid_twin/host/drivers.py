@@ -41,6 +41,7 @@ from __future__ import annotations
 import math
 import operator
 import sys
+import termios
 from collections.abc import Sequence
 from enum import IntEnum
 from typing import Any, NamedTuple
@@ -368,8 +369,10 @@ def initcom(
             timeout=timeout,
             write_timeout=max(1.0, timeout),
         )
-    except (serial.SerialException, OSError, ValueError) as exc:
-        raise PortError(f"initcom: cannot open {url!r}: {exc}") from exc
+    except (serial.SerialException, OSError, ValueError, termios.error) as exc:
+        # termios.error: the device refused the 8E1 settings (a Linux pty opened again at the
+        # same speed refuses PARENB with EINVAL; docs/serve.md)
+        raise PortError(f"initcom: cannot open {url!r} at {rate} 8E1: {exc}") from exc
     state = {
         "port": url,
         "baudrate": H.baudrate,

@@ -63,7 +63,7 @@ class ScuSensors:
                  "sflags2")
 
     def __init__(self) -> None:
-        self.status = 0                          # sensors 1 byte 8 (SPEC section 3)
+        self.status = 0                          # sensors 1 byte 8 (docs/protocol.md 2.4)
         self.pos = [0] * N_SERVOS                # int8 degrees
         self.vel = [0] * N_SERVOS                # int8 degrees per 20 ms tick
         self.current = [0] * N_SERVOS            # 0..100

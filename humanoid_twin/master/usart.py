@@ -201,7 +201,7 @@ class Usart:
 
     def usartProcessMsg(self) -> None:
         """``usartProcessMsg`` (table 3): execute the request in the external buffer against the
-        database and build its response in the TX buffer (SPEC.md section 2)."""
+        database and build its response in the TX buffer (docs/protocol.md section 1)."""
         frame = bytes(self.ext_buf)
         req = Request.decode(frame)
         if not rs232.is_valid_request(req):

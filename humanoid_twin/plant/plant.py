@@ -40,7 +40,8 @@ DEFAULT_MODEL = Path(str(MODELS / DEFAULT_MODEL_NAME))   # where it is on disk (
 
 FOOT_BODIES: tuple[str, str] = ("r_foot", "l_foot")
 PAD_SUFFIXES: tuple[str, str, str, str] = ("fl", "fr", "rl", "rr")   # table 12 order
-_TILT_MAX_DEG = 45.0
+TILT_MAX_DEG = 45.0                # the platform tilts at most this far (either way)
+_TILT_MAX_DEG = TILT_MAX_DEG
 _TILT_PROFILE_CHUNK_US = 10_000    # a tilt profile is re-evaluated at least every 10 ms
 _NOISE_BLOCK = 8192
 _GEOM_TYPES = {int(v): k for k, v in {

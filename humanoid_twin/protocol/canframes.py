@@ -1,6 +1,6 @@
 """CAN identifiers, acceptance filters and 8-byte payloads between the Master and the Slaves.
 
-SPEC.md section 3; seed 002 slides 18-20 (identifier, addresses, payload layouts) and 23-24
+Seed 002 slides 18-20 (identifier, addresses, payload layouts) and 23-24
 (acceptance masks/filters, RX/TX buffers). The contract and the interpretations of the seeds are
 written down in ``docs/protocol.md``.
 
@@ -76,10 +76,10 @@ __all__ = [
     "DBC_RESOURCE",
 ]
 
-OP_ACTUATION = 0        # Master -> Slave (SPEC.md section 3, settled)
+OP_ACTUATION = 0        # Master -> Slave (a project decision: docs/protocol.md 2.1)
 OP_SENSORS = 1          # Slave -> Master
 PAYLOAD_LEN = 8         # every packet carries 8 data bytes (slide 20)
-CURRENT_MAX = 100       # Curr1..3 are 0..100 (finalizeServoMeasures, SPEC.md section 4)
+CURRENT_MAX = 100       # Curr1..3 are 0..100 (seed 000 finalizeServoMeasures, docs/firmware.md)
 
 # Acceptance masks (seed 002 slide 23). A frame is accepted when (id & mask) == (filter & mask).
 MASTER_MASK = 0b00001111100   # destination + index: frames destined to the Master

@@ -1,6 +1,6 @@
 """RS-232 frames between the host (PC) and the Master board.
 
-SPEC.md section 2; seed 002 slides 7-11 (frame layout, OpCode table, examples); seed 000 tables 2-3
+Seed 002 slides 7-11 (frame layout, OpCode table, examples); seed 000 tables 2-3
 (``usartSendTestMsg``, ``usartSendStatus``, ``usartProcessMsg``). The byte-level contract and every
 interpretation of the seeds are written down in ``docs/protocol.md``.
 
@@ -84,7 +84,7 @@ MESSAGE_DATA = 0xFD     # READ answers
 
 
 class Op(IntEnum):
-    """OpCode bits 7-6 (seed 002 slide 9; MASTER settled by SPEC.md section 2)."""
+    """OpCode bits 7-6 (seed 002 slide 9; MASTER: docs/protocol.md 1.2)."""
 
     APPLY_JOINT = 0
     APPLY_CONTROL = 1

@@ -1,4 +1,4 @@
-"""recording: what the twin did, for people and tools (SPEC.md sections 1 and 6).
+"""recording: what the twin did, for people and tools (docs/recording.md).
 
 - :class:`Recorder`: a rerun ``.rrd`` recording of a running twin (buffered columns on the
   ``sim_time`` timeline, robot in 3D, joints, currents, force sensors, CoP, counters, and a

@@ -18,6 +18,7 @@ the twin's virtual times as they are.
 from __future__ import annotations
 
 import pathlib
+import time
 from collections.abc import Iterator
 from typing import TYPE_CHECKING, Any, NamedTuple
 
@@ -37,6 +38,9 @@ __all__ = [
     "decode_can_log",
     "log_suffix",
 ]
+
+
+SQLITE_DRAIN_S = 60.0      # at most this long for python-can's SQLite writer to write its queue
 
 
 class CanLogError(ValueError):
@@ -169,7 +173,14 @@ class CanLog:
                 remove(self._tap)
             except (ValueError, KeyError):
                 pass
-        self._writer.stop()
+        writer = self._writer
+        if isinstance(writer, can.SqliteWriter):
+            # python-can's SQLite writer thread leaves at stop() with frames still queued when
+            # it was behind (it checks its stop flag after each batch): let it drain first
+            deadline = time.monotonic() + SQLITE_DRAIN_S
+            while not writer.buffer.empty() and time.monotonic() < deadline:
+                time.sleep(0.01)
+        writer.stop()
 
     def __enter__(self) -> CanLog:
         return self

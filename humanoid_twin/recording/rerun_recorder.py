@@ -8,7 +8,7 @@ The recorder registers :meth:`Recorder.sample` on the twin's clock (``twin.every
 ...)``, first at the current instant). Each sample writes one row of plain floats into
 preallocated numpy arrays; every ``chunk_s`` of simulated time (and at :meth:`Recorder.flush` /
 :meth:`Recorder.close`) the rows are sent with ``rr.send_columns`` on the duration timeline
-``sim_time``, one call per entity per chunk, never one ``rr.log`` per value (SPEC.md section 1).
+``sim_time``, one call per entity per chunk, never one ``rr.log`` per value (docs/recording.md).
 Static content (robot geometry, platform, floor, foot outlines, sensor positions, series names
 and colours) and the default blueprint are sent once, at construction. What is recorded where:
 docs/recording.md.
