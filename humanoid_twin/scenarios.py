@@ -25,6 +25,7 @@ from typing import Any
 
 import numpy as np
 
+from humanoid_twin.clock import US_PER_S
 from humanoid_twin.controllers import load_host_controller, run_host_controller
 from humanoid_twin.faults import FaultInjector, FaultSpec
 from humanoid_twin.host import drivers
@@ -62,6 +63,11 @@ class ScenarioError(RuntimeError):
 
 class ScenarioInputError(ScenarioError):
     """The options ask for something the run cannot do (a ``--duration`` shorter than the boot)."""
+
+
+class _DurationReachedError(Exception):
+    """Raised by the clock at ``--duration`` when that instant falls inside the motion: the run is
+    cut there and its summary says ``completed: false``."""
 
 
 class BootError(ScenarioError):
@@ -333,33 +339,42 @@ def run(opts: RunOptions, on_progress: Callable[[float, float | None], None] | N
         if opts.tilt:
             twin.plant.set_tilt_profile(tilt_profile(opts.tilt, boot_s))
         end[0] = duration
-        try:
-            if host_error is not None:
-                pass
-            elif not spec.moves:
-                hold(H, the_plan)
-            elif duration > twin.now_s:
-                exe_traj(H, the_plan.t, the_plan.pos_apply, 0.0, k=the_plan.k)
-        except drivers.CommError as exc:
-            # with the supervisor stopped, or faults injected, a failed request is part of what
-            # the run shows (summary host_error); the robot is left to the firmware meanwhile
-            if not stopped() and not opts.faults:
-                raise ScenarioError(f"{opts.scenario}: {exc}") from exc
-            host_error = f"{opts.scenario}: {exc}"
+        completed = True
+        if opts.duration is not None and spec.moves and duration < boot_s + motion_s:
+            def cut() -> None:
+                raise _DurationReachedError
+
+            twin.clock.schedule(round(duration * US_PER_S), cut)
         host_calls = None
-        if host_step is not None and host_error is None:
+        try:
             try:
-                host_calls = run_host_controller(H, host_step, monitor, duration, opts.host_period_ms,
-                                                 should_stop=stopped).calls
+                if host_error is not None:
+                    pass
+                elif not spec.moves:
+                    hold(H, the_plan)
+                elif duration > twin.now_s:
+                    exe_traj(H, the_plan.t, the_plan.pos_apply, 0.0, k=the_plan.k)
             except drivers.CommError as exc:
+                # with the supervisor stopped, or faults injected, a failed request is part of what
+                # the run shows (summary host_error); the robot is left to the firmware meanwhile
                 if not stopped() and not opts.faults:
-                    raise ScenarioError(f"host controller: {exc}") from exc
-                host_error = f"host controller: {exc}"
-            except RuntimeError as exc:
-                raise ScenarioError(str(exc)) from exc
-        rest = duration - twin.now_s
-        if rest > 0:
-            host_sleep(H, rest)
+                    raise ScenarioError(f"{opts.scenario}: {exc}") from exc
+                host_error = f"{opts.scenario}: {exc}"
+            if host_step is not None and host_error is None:
+                try:
+                    host_calls = run_host_controller(H, host_step, monitor, duration, opts.host_period_ms,
+                                                     should_stop=stopped).calls
+                except drivers.CommError as exc:
+                    if not stopped() and not opts.faults:
+                        raise ScenarioError(f"host controller: {exc}") from exc
+                    host_error = f"host controller: {exc}"
+                except RuntimeError as exc:
+                    raise ScenarioError(str(exc)) from exc
+            rest = duration - twin.now_s
+            if rest > 0:
+                host_sleep(H, rest)
+        except _DurationReachedError:
+            completed = False     # --duration fell inside the motion: cut there
         wall = time.perf_counter() - wall0
         summary = {
             "scenario": opts.scenario,
@@ -374,6 +389,7 @@ def run(opts: RunOptions, on_progress: Callable[[float, float | None], None] | N
             "can_frames": twin.network.frames_sent,
             "serial_frames": twin.master.stats()["serial_frames_received"],
             "boot_s": round(boot_s, 3),
+            "completed": completed,
             "tilt_deg": opts.tilt,
             "control": opts.control,
             "seed": opts.seed,

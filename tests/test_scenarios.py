@@ -49,3 +49,12 @@ def test_a_scenario_added_in_one_place_runs_end_to_end(monkeypatch):
     # boot + the 0.5 s motion + the settling time: the motion's duration came from the plan
     assert s["duration_s"] == pytest.approx(s["boot_s"] + 0.5 + scenarios.SETTLE_S, abs=0.05)
     assert np.isfinite(s["trunk_tilt_max_deg"])
+
+
+def test_a_duration_inside_the_motion_cuts_it_and_says_so():
+    """``--duration`` shorter than boot + motion stops the run at that instant (completed false);
+    without it the motion runs to its end (completed true)."""
+    cut = run(RunOptions(scenario="flexao", duration=3.2, seed=0))
+    assert cut["duration_s"] == 3.2 and cut["completed"] is False and not cut["fell"]
+    whole = run(RunOptions(scenario="stand", duration=3.2, seed=0))
+    assert whole["duration_s"] == 3.2 and whole["completed"] is True
