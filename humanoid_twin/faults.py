@@ -261,24 +261,14 @@ def _fault_arg(text: str) -> FaultSpec:
         raise argparse.ArgumentTypeError(str(exc)) from None
 
 
-def _host_link_arg(text: str) -> float:
-    import argparse
-
-    try:
-        v = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a number of seconds: {text!r}") from None
-    if not math.isfinite(v) or v <= 0:
-        raise argparse.ArgumentTypeError(f"must be a positive number of seconds, got {text!r}")
-    return v
-
-
 def add_fault_options(p: Any) -> None:
     """``--fault SPEC`` (repeatable) and ``--host-link S`` on an argparse (sub)parser."""
+    from humanoid_twin.cli.argtypes import positive_seconds
+
     p.add_argument("--fault", type=_fault_arg, action="append", default=[], metavar="SPEC",
                    help="inject a fault, KIND[:ARG][@T0[-T1]] (repeatable; seeded by --seed): "
                    + ", ".join(f"{k}:{v}" for k, v in KINDS.items()) + " (docs/supervisor.md)")
-    p.add_argument("--host-link", type=_host_link_arg, metavar="S",
+    p.add_argument("--host-link", type=positive_seconds, metavar="S",
                    help="supervisor: latch host_link when no valid host frame arrives for S seconds "
                    "while ready (default: off)")
 

@@ -16,12 +16,13 @@ from __future__ import annotations
 import argparse
 import contextlib
 import json
-import math
 import os
 import shutil
 import signal
 import sys
 from pathlib import Path
+
+from humanoid_twin.cli.argtypes import degrees_90, non_negative_seconds, positive_seconds, tcp_port
 
 EXIT_USAGE = 2
 EXIT_SUPERVISOR = 3     # the run ended with the supervisor in safe or estop (docs/supervisor.md)
@@ -38,46 +39,6 @@ class _Parser(argparse.ArgumentParser):
 def _usage_error(message: str) -> SystemExit:
     sys.stderr.write(f"humanoid-twin: error: {message}\n")
     return SystemExit(EXIT_USAGE)
-
-
-def _positive(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
-    if not math.isfinite(value) or value <= 0:
-        raise argparse.ArgumentTypeError(f"must be a positive number of seconds, got {text!r}")
-    return value
-
-
-def _non_negative(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
-    if not math.isfinite(value) or value < 0:
-        raise argparse.ArgumentTypeError(f"must be a number of seconds >= 0, got {text!r}")
-    return value
-
-
-def _tcp_port(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a port number: {text!r}") from None
-    if not 0 <= value <= 65535:
-        raise argparse.ArgumentTypeError(f"a TCP port is 0..65535, got {text!r}")
-    return value
-
-
-def _degrees(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a number of degrees: {text!r}") from None
-    if not math.isfinite(value) or abs(value) > 90:
-        raise argparse.ArgumentTypeError(f"must be within -90..90 degrees, got {text!r}")
-    return value
 
 
 CAN_INTERFACES = ("humanoid_twin", "virtual", "socketcan")
@@ -153,13 +114,13 @@ def build_parser() -> argparse.ArgumentParser:
     )
     run.add_argument("scenario", choices=SCENARIOS, metavar="SCENARIO",
                      help=f"one of: {', '.join(SCENARIOS)} (see above)")
-    run.add_argument("--duration", type=_positive, metavar="S", help="simulated seconds (default: boot "
-                     "~2.7 s + the motion + 2 s of settling)")
-    run.add_argument("--T", type=_positive, metavar="S", help="the planner's movement period in "
+    run.add_argument("--duration", type=positive_seconds, metavar="S", help="simulated seconds (default: "
+                     "boot ~2.7 s + the motion + 2 s of settling)")
+    run.add_argument("--T", type=positive_seconds, metavar="S", help="the planner's movement period in "
                      "seconds (seed 000 table 22; levantar_perna: each of its 5 steps). "
                      f"Default: {DEFAULT_T_S:g} s")
     per = ", ".join(f"{name} {deg:g}" for name, deg in DEFAULT_MOTION_DEG.items())
-    run.add_argument("--motion", type=_degrees, metavar="DEG", help="the planner's angle in degrees "
+    run.add_argument("--motion", type=degrees_90, metavar="DEG", help="the planner's angle in degrees "
                      f"(what it bends: see the scenarios above). Default: {per}")
     run.add_argument("--perna", type=int, default=1, choices=(1, 2), help="levantar_perna: the leg to "
                      "lift, 1 the right (default), 2 the left (seed 000 table 22)")
@@ -169,7 +130,7 @@ def build_parser() -> argparse.ArgumentParser:
                      ".csv .trc ...), python-can writers")
     run.add_argument("--control", choices=tuple(CONTROL_CHOICES), help="override the control type the "
                      "planner sets")
-    run.add_argument("--tilt", type=_degrees, default=0.0, help="tilt the floor platform slowly about "
+    run.add_argument("--tilt", type=degrees_90, default=0.0, help="tilt the floor platform slowly about "
                      "the lateral axis to DEG (toes up positive)")
     run.add_argument("--seed", type=int, default=0, help="random seed (sensor noise, servo offsets, "
                      "board phases)")
@@ -192,14 +153,14 @@ def build_parser() -> argparse.ArgumentParser:
     )
     where = serve.add_mutually_exclusive_group()
     where.add_argument("--pty", action="store_true", help="serve on a pseudo-terminal (default)")
-    where.add_argument("--tcp", type=_tcp_port, metavar="PORT", help="serve on TCP PORT (0: any free port)")
+    where.add_argument("--tcp", type=tcp_port, metavar="PORT", help="serve on TCP PORT (0: any free port)")
     serve.add_argument("--host", default="127.0.0.1", help="address to bind with --tcp (default 127.0.0.1; "
                        "::1 for IPv6 loopback)")
-    serve.add_argument("--idle-timeout", type=_non_negative, default=600.0, metavar="S",
+    serve.add_argument("--idle-timeout", type=non_negative_seconds, default=600.0, metavar="S",
                        help="disconnect a TCP client that sent nothing for S wall seconds, so that a "
                        "silent client cannot hold the port (default 600; 0: never)")
     serve.add_argument("--seed", type=int, default=0, help="random seed")
-    serve.add_argument("--tilt", type=_degrees, default=0.0, help="tilt the platform slowly to DEG")
+    serve.add_argument("--tilt", type=degrees_90, default=0.0, help="tilt the platform slowly to DEG")
     _add_can_options(serve)
     add_fault_options(serve)
 

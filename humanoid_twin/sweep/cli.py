@@ -3,13 +3,13 @@
 from __future__ import annotations
 
 import argparse
-import math
 import os
 import signal
 import sys
 from pathlib import Path
 from typing import Any
 
+from humanoid_twin.cli.argtypes import count, positive_seconds
 from humanoid_twin.sweep.engine import (
     BACKENDS,
     DEFAULT_TIMEOUT_S,
@@ -22,26 +22,6 @@ from humanoid_twin.sweep.table import SweepError, read_table, table_format
 
 # run options a sweep sets itself, or that would make every run write the same file
 NOT_PARAMS = {"command", "scenario", "out", "no_record", "can_log", "json", "no_progress"}
-
-
-def _count(text: str) -> int:
-    try:
-        n = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a whole number: {text!r}") from None
-    if n < 1:
-        raise argparse.ArgumentTypeError(f"must be at least 1, got {text!r}")
-    return n
-
-
-def _seconds(text: str) -> float:
-    try:
-        s = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a number of seconds: {text!r}") from None
-    if not math.isfinite(s) or s <= 0:
-        raise argparse.ArgumentTypeError(f"must be a positive number of seconds, got {text!r}")
-    return s
 
 
 def add_sweep_parser(sub: Any, scenarios: tuple[str, ...]) -> argparse.ArgumentParser:
@@ -60,8 +40,8 @@ def add_sweep_parser(sub: Any, scenarios: tuple[str, ...]) -> argparse.ArgumentP
     p.add_argument("--param", action="append", default=[], metavar="NAME=V1,V2,...",
                    help="a run option (its flag without dashes: tilt, T, motion, perna, control, fault, "
                    "seed ...) and its values; repeat for a grid")
-    p.add_argument("--seeds", type=_count, default=1, metavar="N", help="seeds 0..N-1 (default 1)")
-    p.add_argument("--jobs", type=_count, metavar="N", help="runs at a time (default: the cores here; "
+    p.add_argument("--seeds", type=count, default=1, metavar="N", help="seeds 0..N-1 (default 1)")
+    p.add_argument("--jobs", type=count, metavar="N", help="runs at a time (default: the cores here; "
                    "ray: the CPUs of the local Ray)")
     p.add_argument("--backend", choices=BACKENDS, default="local",
                    help="local (default): a process per run here; ray: a Ray cluster (the ray extra)")
@@ -71,7 +51,7 @@ def add_sweep_parser(sub: Any, scenarios: tuple[str, ...]) -> argparse.ArgumentP
                    help="the table; runs already in it are skipped (runs with an error run again)")
     p.add_argument("--recordings", type=Path, metavar="DIR", help="write one .rrd per run into DIR "
                    "(default: no recordings)")
-    p.add_argument("--timeout", type=_seconds, default=DEFAULT_TIMEOUT_S, metavar="S",
+    p.add_argument("--timeout", type=positive_seconds, default=DEFAULT_TIMEOUT_S, metavar="S",
                    help=f"a run taking longer is stopped and is a row with an error (default "
                    f"{DEFAULT_TIMEOUT_S:g} s)")
     p.add_argument("--plot", type=Path, metavar="FILE.png", help="plot --metric against --x")
