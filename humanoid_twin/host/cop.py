@@ -33,7 +33,7 @@ from humanoid_twin.hardware import (
     N_SPECIAL_SENSORS,
 )
 from humanoid_twin.host import timebase
-from humanoid_twin.host.drivers import ErrorCode, readjoint, readspecial
+from humanoid_twin.host.drivers import ErrorCode, int_at_least, readjoint, readspecial
 from humanoid_twin.host.planners import TICK_S
 from humanoid_twin.host.tables import RobotTables, default_tables
 from humanoid_twin.protocol.rs232 import PARAM_CURRENT, PARAM_POSITION
@@ -277,8 +277,7 @@ def cop_realtime(
     s = _scu(scu)
     duration = _check_time("duration", duration)
     dt = _check_time("dt", dt, positive=False)
-    if chunk < 1:
-        raise ValueError(f"chunk must be >= 1 sample, got {chunk}")
+    chunk = int_at_least("chunk", chunk, 1, "a whole number of samples >= 1")
     rec = rr.RecordingStream("humanoid_twin_cop_realtime")
     if mode == "spawn":
         rec.spawn()
