@@ -66,8 +66,6 @@ from humanoid_twin.protocol.rs232 import (
     PARAM_TEST,
     PARAM_VELOCITY,
     SUPERVISOR_ESTOP,
-    SUPERVISOR_FAULTS,
-    SUPERVISOR_MODES,
     SUPERVISOR_READ,
     SUPERVISOR_RESET,
     TEST_MESSAGE,
@@ -79,6 +77,8 @@ from humanoid_twin.protocol.rs232 import (
     hexdump,
     parse_opcode,
     s8,
+    supervisor_fault_name,
+    supervisor_mode_name,
 )
 from humanoid_twin.protocol.wire import (
     BAUDRATE,
@@ -205,12 +205,12 @@ class SupervisorRefused(InvalidRequest):  # noqa: N818  (the names of the task's
     @property
     def mode_name(self) -> str:
         """``safe`` or ``estop``."""
-        return SUPERVISOR_MODES.get(self.mode, f"mode {self.mode}")
+        return supervisor_mode_name(self.mode)
 
     @property
     def fault_name(self) -> str | None:
         """The latched fault's name (``silent``, ``bus_off`` ...), None without one."""
-        return SUPERVISOR_FAULTS.get(self.fault)
+        return supervisor_fault_name(self.fault)
 
 
 class PortError(CommError):
@@ -300,12 +300,12 @@ class SupervisorResult(NamedTuple):
     @property
     def mode_name(self) -> str | None:
         """The mode's name, None on error."""
-        return None if self.mode is None else SUPERVISOR_MODES.get(self.mode, f"mode {self.mode}")
+        return None if self.mode is None else supervisor_mode_name(self.mode)
 
     @property
     def fault_name(self) -> str | None:
         """The latched fault's name, None when there is none (or on error)."""
-        return None if not self.fault else SUPERVISOR_FAULTS.get(self.fault, f"fault {self.fault}")
+        return supervisor_fault_name(self.fault)
 
 
 class ReadSpecialResult(NamedTuple):
@@ -671,7 +671,7 @@ def raise_for_error(result: tuple[Any, ...], what: str = "request", H: Any = Non
     is_apply = len(rx) == 6 and parse_opcode(rx[1])[0] <= Op.APPLY_CONTROL
     if H is not None and code == ErrorCode.INVALID_REQUEST and is_apply:
         sup = readsupervisor(H)
-        if sup.error == ErrorCode.OK and sup.mode in (3, 4):
+        if sup.error == ErrorCode.OK and sup.mode_name in ("safe", "estop"):
             fault = f", latched fault {sup.fault_name} on node {sup.node}" if sup.fault else ""
             raise SupervisorRefused(
                 f"{what}: refused by the Master's supervisor: mode {sup.mode_name}{fault} "
@@ -712,12 +712,12 @@ class Supervisor(NamedTuple):
     @property
     def mode_name(self) -> str:
         """``standby`` / ``self_check`` / ``ready`` / ``safe`` / ``estop``."""
-        return SUPERVISOR_MODES.get(self.mode, f"mode {self.mode}")
+        return supervisor_mode_name(self.mode)
 
     @property
     def fault_name(self) -> str | None:
         """The latched fault's name, None without one."""
-        return SUPERVISOR_FAULTS.get(self.fault) if self.fault else None
+        return supervisor_fault_name(self.fault)
 
 
 class HumanoidClient:
