@@ -86,6 +86,8 @@ FORCE_SENSOR_XY_MM: tuple[tuple[float, float], ...] = (
     (-35.0, -62.5),
     (34.0, -62.5),
 )
+FORCE_SENSOR_NAMES: tuple[str, str, str, str] = ("front-left", "front-right", "rear-left", "rear-right")
+FORCE_SENSOR_LABELS: tuple[str, str, str, str] = ("FL", "FR", "RL", "RR")   # the DBC's signal names
 FOOT_LENGTH_MM = 200.0          # seed 002 slide 3: foot print 20 x 8 cm
 FOOT_WIDTH_MM = 80.0
 

@@ -29,6 +29,7 @@ from humanoid_twin.hardware import (
     FOOT_WIDTH_MM,
     FORCE_CALIBRATION_VALUE,
     FORCE_N_PER_COUNT,
+    FORCE_SENSOR_NAMES,
     FORCE_SENSOR_XY_MM,
     N_SPECIAL_SENSORS,
 )
@@ -53,7 +54,7 @@ __all__ = [
 
 COP_MIN_LOAD = 8                          # 7-bit counts over the 4 sensors (slave data.COP_MIN_LOAD)
 N_PER_COUNT7 = 2 * FORCE_N_PER_COUNT      # one 7-bit count in newtons
-SENSOR_NAMES = ("front-left", "front-right", "rear-left", "rear-right")
+SENSOR_NAMES = FORCE_SENSOR_NAMES
 _SENSOR_XY = np.asarray(FORCE_SENSOR_XY_MM, dtype=float)   # (4, 2)
 
 

@@ -60,6 +60,8 @@ __all__ = [
     "status_byte",
     "parse_status_byte",
     "supervisor_flags",
+    "SFLAGS_SOURCE_SHIFT",
+    "SFLAGS_INDEX",
     "SFLAGS_WATCHDOG",
     "SFLAGS_CAN_STATE",
     "SFLAGS_SUPERVISOR",
@@ -257,19 +259,27 @@ def parse_status_byte(b: int) -> SlaveStatus:
     return _STATUS_TABLE[b]
 
 
+# SFlags, byte 0 of a sensor packet (slide 20): bits 7-4 source address, bit 3 packet index,
+# bits 2-0 zero in the seed (the supervisor's flags below use them).
+SFLAGS_SOURCE_SHIFT = 4
+SFLAGS_INDEX = 0x08
+_SFLAGS_LOW = 0x07
+
+
 def sflags(src: int, index: int) -> int:
     """SFlags byte of a sensor packet (slide 20): bits 7-4 source address, bit 3 index, 2-0 zero."""
-    if not (0 <= src <= 15 and 0 <= index <= 1):
+    if not (0 <= src <= _ADDR_MASK and 0 <= index <= 1):
         raise PayloadError(f"SFlags: source must be 0..15 and index 0..1, got src={src!r}, index={index!r}")
-    return (src << 4) | (index << 3)
+    return (src << SFLAGS_SOURCE_SHIFT) | (SFLAGS_INDEX if index else 0)
 
 
 def _split_sflags(sf: int, index: int, packet: str) -> int:
-    if sf & 0x07:
+    if sf & _SFLAGS_LOW:
         raise PayloadError(f"{packet}: SFlags 0x{sf:02X} has bits 2-0 set (must be zero)")
-    if (sf >> 3) & 1 != index:
-        raise PayloadError(f"{packet}: SFlags 0x{sf:02X} carries index {(sf >> 3) & 1}, expected {index}")
-    return sf >> 4
+    got = 1 if sf & SFLAGS_INDEX else 0
+    if got != index:
+        raise PayloadError(f"{packet}: SFlags 0x{sf:02X} carries index {got}, expected {index}")
+    return sf >> SFLAGS_SOURCE_SHIFT
 
 
 # --- payloads ------------------------------------------------------------------------------
@@ -342,13 +352,13 @@ def pack_sensors1(src: int, pos: Sequence[int], speed: Sequence[int], status: in
     bits 2-0 (:func:`supervisor_flags`; 0 on a healthy board, so the seed's bytes are unchanged).
     """
     try:
-        if not 0 <= src <= 15:
+        if not 0 <= src <= _ADDR_MASK:
             raise ValueError(f"source address must be 0..15, got {src!r}")
-        if not 0 <= flags <= 7 or flags & SFLAGS_CAN_STATE > ErrorState.BUS_OFF:
+        if not 0 <= flags <= _SFLAGS_LOW or flags & SFLAGS_CAN_STATE > ErrorState.BUS_OFF:
             raise ValueError(f"supervisor flags must be 0..7 with CAN state 0..2, got {flags!r}")
         p1, p2, p3 = pos
         v1, v2, v3 = speed
-        return _SEN1.pack((src << 4) | flags, p1, p2, p3, v1, v2, v3, status)
+        return _SEN1.pack((src << SFLAGS_SOURCE_SHIFT) | flags, p1, p2, p3, v1, v2, v3, status)
     except (struct.error, TypeError, ValueError) as exc:
         raise _pack_error("Sensors1", exc, src=src, pos=pos, speed=speed, status=status) from None
 
@@ -390,13 +400,14 @@ def pack_sensors2(src: int, curr: Sequence[int], data4: Sequence[int], law_stopp
     ``law_stopped``: SFlags bit 2 (:data:`SFLAGS2_LAW`).
     """
     try:
-        if not 0 <= src <= 15:
+        if not 0 <= src <= _ADDR_MASK:
             raise ValueError(f"source address must be 0..15, got {src!r}")
         c1, c2, c3 = curr
         d1, d2, d3, d4 = data4
         if c1 > CURRENT_MAX or c2 > CURRENT_MAX or c3 > CURRENT_MAX:
             raise ValueError(f"current must be 0..{CURRENT_MAX}")
-        return _SEN2.pack((src << 4) | 0x08 | (SFLAGS2_LAW if law_stopped else 0), c1, c2, c3, d1, d2, d3, d4)
+        sf = (src << SFLAGS_SOURCE_SHIFT) | SFLAGS_INDEX | (SFLAGS2_LAW if law_stopped else 0)
+        return _SEN2.pack(sf, c1, c2, c3, d1, d2, d3, d4)
     except (struct.error, TypeError, ValueError) as exc:
         raise _pack_error("Sensors2", exc, src=src, curr=curr, data4=data4) from None
 
