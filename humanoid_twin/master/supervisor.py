@@ -25,11 +25,10 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, NamedTuple
 
-from humanoid_twin.bus.network import BUS_OFF
 from humanoid_twin.clock import US_PER_S
 from humanoid_twin.hardware import FOOT_OF_SCU, FORCE_SENSOR_XY_MM, PWM_PERIOD_US
 from humanoid_twin.protocol.canframes import SFLAGS2_LAW, SFLAGS_CAN_STATE
-from humanoid_twin.protocol.rs232 import SUPERVISOR_FAULTS, SUPERVISOR_MODES
+from humanoid_twin.protocol.rs232 import PARAM_SPECIAL, SUPERVISOR_FAULTS, SUPERVISOR_MODES, Op
 from humanoid_twin.protocol.wire import (
     MASTER_ADDRESS,
     POS_LIMIT_DEG,
@@ -37,6 +36,7 @@ from humanoid_twin.protocol.wire import (
     STATUS_CALIB,
     STATUS_DEADLINE,
     STATUS_PWM,
+    ErrorState,
 )
 from humanoid_twin.slave.data import calcCoP
 
@@ -71,9 +71,8 @@ LAW = 8                          # a Slave stopped a control law that failed (do
 FAULT_NAMES: dict[int, str] = SUPERVISOR_FAULTS
 
 ROUND_US = 8_000                 # one CAN schedule round (module PIC: 8 slaves x 1 ms)
-_OP_APPLY_JOINT = 0
-_OP_APPLY_CONTROL = 1
-_PARAM_SPECIAL = 3
+_OP_APPLY_JOINT = int(Op.APPLY_JOINT)
+_BUS_OFF = ErrorState.BUS_OFF.label      # a CAN controller's ``state`` when bus-off
 
 # The sensor rectangle of a foot (table 12, mm): the edge the firmware's CoP can reach.
 _XS = [p[0] for p in FORCE_SENSOR_XY_MM]
@@ -182,7 +181,7 @@ class Supervisor:
     def applied(self, op: int, param: int, data: tuple[int, int, int]) -> None:
         """An APPLY was accepted: a PWM-on request starts the self-check; PWM off on every board
         in ``ready`` goes back to ``standby``."""
-        if op != _OP_APPLY_JOINT or param != _PARAM_SPECIAL:
+        if op != _OP_APPLY_JOINT or param != PARAM_SPECIAL:
             return
         if data[0] == 1:
             if self.mode == STANDBY:
@@ -221,7 +220,7 @@ class Supervisor:
         ctl = self.can.drivers.controller
         master_down = False
         # the Master's own CAN: bus-off, or nothing of its own got on the wire for N rounds
-        if ctl.state == BUS_OFF:
+        if ctl.state == _BUS_OFF:
             self._fault(BUS_OFF_FAULT, 0, now)
             master_down = True
         sent = ctl.frames_sent
