@@ -24,6 +24,7 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from humanoid_twin.hardware import (
+    COP_MIN_LOAD,
     FOOT_LENGTH_MM,
     FOOT_OF_SCU,
     FOOT_WIDTH_MM,
@@ -52,7 +53,6 @@ __all__ = [
     "cop_realtime",
 ]
 
-COP_MIN_LOAD = 8                          # 7-bit counts over the 4 sensors (slave data.COP_MIN_LOAD)
 N_PER_COUNT7 = 2 * FORCE_N_PER_COUNT      # one 7-bit count in newtons
 SENSOR_NAMES = FORCE_SENSOR_NAMES
 _SENSOR_XY = np.asarray(FORCE_SENSOR_XY_MM, dtype=float)   # (4, 2)
