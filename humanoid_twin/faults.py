@@ -30,6 +30,7 @@ from typing import TYPE_CHECKING, Any
 
 from humanoid_twin.clock import US_PER_S
 from humanoid_twin.hardware import FOOT_OF_SCU, N_SERVOS, PWM_PERIOD_US
+from humanoid_twin.master.pic import ROUND_US
 from humanoid_twin.protocol.wire import node_error, node_name, scu_error
 
 if TYPE_CHECKING:
@@ -40,7 +41,7 @@ __all__ = ["KINDS", "FaultSpec", "FaultSpecError", "parse_fault", "FaultInjector
 
 PUSH_US = 100_000            # a push lasts 100 ms
 DEADLINE_DELAY_US = 3_000    # deadline:NODE: each tick's work starts this late
-BUS_OFF_REFORCE_US = 8_000   # bus-off:NODE@T0-T1: forced again every CAN round until T1
+BUS_OFF_REFORCE_US = ROUND_US  # bus-off:NODE@T0-T1: forced again every CAN round until T1
 MAX_PUSH_N = 1000.0
 
 KINDS: dict[str, str] = {

@@ -27,6 +27,7 @@ from typing import TYPE_CHECKING, Any, NamedTuple
 
 from humanoid_twin.clock import US_PER_S
 from humanoid_twin.hardware import FOOT_OF_SCU, FORCE_SENSOR_XY_MM, PWM_PERIOD_US
+from humanoid_twin.master.pic import ROUND_US
 from humanoid_twin.protocol.canframes import SFLAGS2_LAW, SFLAGS_CAN_STATE
 from humanoid_twin.protocol.rs232 import PARAM_SPECIAL, SUPERVISOR_FAULTS, SUPERVISOR_MODES, Op
 from humanoid_twin.protocol.wire import (
@@ -51,26 +52,26 @@ __all__ = [
     "FAULT_NAMES", "Fault", "SupervisorConfig", "Supervisor",
 ]
 
-# --- modes (wire numbers) ------------------------------------------------------------------------
-STANDBY = 0
-SELF_CHECK = 1
-READY = 2
-SAFE = 3
-ESTOP = 4
+# --- modes and faults: the wire numbers of rs232.SUPERVISOR_MODES / SUPERVISOR_FAULTS, by name ---
+_MODE = {name: code for code, name in SUPERVISOR_MODES.items()}
+STANDBY = _MODE["standby"]
+SELF_CHECK = _MODE["self_check"]
+READY = _MODE["ready"]
+SAFE = _MODE["safe"]
+ESTOP = _MODE["estop"]
 MODE_NAMES: dict[int, str] = SUPERVISOR_MODES
 
-# --- faults (wire codes, JSON names) ----------------------------------------------------------------
-SILENT = 1
-BUS_OFF_FAULT = 2
-SLAVE_CAN = 3
-OVER_TRAVEL = 4
-DEADLINE = 5
-BALANCE = 6
-HOST_LINK = 7
-LAW = 8                          # a Slave stopped a control law that failed (docs/controllers.md)
+_FAULT = {name: code for code, name in SUPERVISOR_FAULTS.items()}
+SILENT = _FAULT["silent"]
+BUS_OFF_FAULT = _FAULT["bus_off"]
+SLAVE_CAN = _FAULT["slave_can"]
+OVER_TRAVEL = _FAULT["over_travel"]
+DEADLINE = _FAULT["deadline"]
+BALANCE = _FAULT["balance"]
+HOST_LINK = _FAULT["host_link"]
+LAW = _FAULT["law"]              # a Slave stopped a control law that failed (docs/controllers.md)
 FAULT_NAMES: dict[int, str] = SUPERVISOR_FAULTS
 
-ROUND_US = 8_000                 # one CAN schedule round (module PIC: 8 slaves x 1 ms)
 _OP_APPLY_JOINT = int(Op.APPLY_JOINT)
 _BUS_OFF = ErrorState.BUS_OFF.label      # a CAN controller's ``state`` when bus-off
 
