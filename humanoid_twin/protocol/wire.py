@@ -118,6 +118,16 @@ class ControlType(IntEnum):
     REACTION_CONTROL = 2
     BALANCE_CONTROL = 3
 
+    @property
+    def label(self) -> str:
+        """The short name users type (``run --control``, ``--law``): ``"none"``,
+        ``"locomotion"``, ``"reaction"`` or ``"balance"``."""
+        return _CONTROL_LABELS[self]
+
+
+_CONTROL_LABELS = {ControlType.NO_CONTROL: "none", ControlType.LOCOMOTION_CONTROL: "locomotion",
+                   ControlType.REACTION_CONTROL: "reaction", ControlType.BALANCE_CONTROL: "balance"}
+
 
 # --- CAN error states (seed 002 slides 25-27; the ERRSTATE byte of readcanstat) --------------
 class ErrorState(IntEnum):
