@@ -35,11 +35,11 @@ from humanoid_twin.hardware import (
     N_SPECIAL_SENSORS,
 )
 from humanoid_twin.host import timebase
-from humanoid_twin.host.drivers import ErrorCode, int_at_least, readjoint, readspecial
+from humanoid_twin.host.drivers import ErrorCode, readjoint, readspecial
 from humanoid_twin.host.planners import TICK_S
 from humanoid_twin.host.tables import RobotTables, default_tables
 from humanoid_twin.protocol.rs232 import PARAM_CURRENT, PARAM_POSITION
-from humanoid_twin.protocol.wire import check_scu
+from humanoid_twin.protocol.wire import check_scu, int_in_range
 
 __all__ = [
     "COP_MIN_LOAD",
@@ -278,7 +278,7 @@ def cop_realtime(
     s = _scu(scu)
     duration = _check_time("duration", duration)
     dt = _check_time("dt", dt, positive=False)
-    chunk = int_at_least("chunk", chunk, 1, "a whole number of samples >= 1")
+    chunk = int_in_range("chunk", chunk, 1, None, "samples")
     rec = rr.RecordingStream("humanoid_twin_cop_realtime")
     if mode == "spawn":
         rec.spawn()

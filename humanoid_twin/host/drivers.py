@@ -90,6 +90,7 @@ from humanoid_twin.protocol.wire import (
     STATUS_PWM,
     ControlType,
     ErrorState,
+    int_in_range,
 )
 
 __all__ = [
@@ -131,7 +132,6 @@ __all__ = [
     "STATUS_DEADLINE",
     "STATUS_ALL_FINISHED",
     "STATUS_ONE_FINISHED",
-    "int_at_least",
 ]
 
 DEFAULT_RATE = BAUDRATE
@@ -326,7 +326,7 @@ class ReadSpecialResult(NamedTuple):
 def gate_to_port(gate: int, platform: str | None = None) -> str:
     """The MATLAB ``gate`` number (1, 2, ...) as a platform port name: ``COMn`` on Windows,
     ``/dev/ttyS{n-1}`` elsewhere (COM1 is ``/dev/ttyS0`` on Linux)."""
-    n = int_at_least("gate", gate, 1, "a port number 1, 2, ...")
+    n = int_in_range("gate", gate, 1, None, "a port number 1, 2, ...")
     platform = sys.platform if platform is None else platform
     return f"COM{n}" if platform.startswith("win") else f"/dev/ttyS{n - 1}"
 
@@ -348,7 +348,7 @@ def initcom(
         url = gate_to_port(port)
     if not url:
         raise ValueError("port must be a non-empty pyserial URL or device name")
-    rate = int_at_least("rate", rate, 1, "a positive integer baud rate")
+    rate = int_in_range("rate", rate, 1, None, "a baud rate")
     if not (isinstance(timeout, int | float) and timeout > 0 and math.isfinite(timeout)):
         raise ValueError(f"timeout must be a positive number of seconds, got {timeout!r}")
     if url.startswith("twin://"):
@@ -389,7 +389,7 @@ def killcom(H: Any) -> int:
 
 
 def _tries(max_tries: int) -> int:
-    return int_at_least("max_tries", max_tries, 1, "an integer >= 1")
+    return int_in_range("max_tries", max_tries, 1, None, "tries")
 
 
 def _reset(port: Any) -> None:
@@ -463,19 +463,6 @@ def _exchange(H: Any, frame: bytes, expect: tuple[int, ...], max_tries: int) -> 
 
 # ------------------------------------------------------------------------------------------
 # argument checks
-
-
-def int_at_least(name: str, value: Any, lo: int, what: str) -> int:
-    """``value`` as a plain int >= ``lo`` (numpy integers accepted, floats not), else a
-    ``ValueError``: "``name`` must be ``what``, got ...". The host toolbox's one check of a
-    count (a port number, a baud rate, tries, samples)."""
-    try:
-        n = operator.index(value)
-    except TypeError:
-        raise ValueError(f"{name} must be {what}, got {value!r}") from None
-    if n < lo:
-        raise ValueError(f"{name} must be {what}, got {n}")
-    return n
 
 
 def _whole(name: str, value: Any) -> int:

@@ -18,11 +18,11 @@ import numpy as np
 
 from humanoid_twin.hardware import N_SERVOS
 from humanoid_twin.host import timebase
-from humanoid_twin.host.drivers import ErrorCode, int_at_least, raise_for_error, readjoint
+from humanoid_twin.host.drivers import ErrorCode, raise_for_error, readjoint
 from humanoid_twin.host.motion import apply_joint, period_ticks, send_gains
 from humanoid_twin.host.planners import TICK_S, control_row
 from humanoid_twin.protocol.rs232 import PARAM_CURRENT, PARAM_POSITION, PARAM_VELOCITY
-from humanoid_twin.protocol.wire import ControlType, check_scu
+from humanoid_twin.protocol.wire import ControlType, check_scu, int_in_range
 
 __all__ = [
     "TEST_SCU",
@@ -74,7 +74,7 @@ def predict_trajectory(
     degrees per second at the 20 ms tick). ``pos0``/``posF`` scalars or vectors (one column per
     servo).
     """
-    n = int_at_least("n_samples", n_samples, 2, "an integer >= 2")
+    n = int_in_range("n_samples", n_samples, 2, None, "samples")
     r = float(ratio)
     if not (math.isfinite(r) and 0 < r <= 1):
         raise ValueError(f"ratio must be in (0, 1], got {ratio!r}")

@@ -170,15 +170,17 @@ STATUS_FINISHED = (0x01, 0x02, 0x04)   # bits 0, 1, 2: the motion of servo 1, 2,
 
 
 # --- int8 on the wire (two's complement bytes: positions, velocities, KP) --------------------
-def int_in_range(name: str, value: Any, lo: int, hi: int, what: str) -> int:
-    """``value`` as a plain int in ``lo..hi`` (numpy integers accepted), else a readable
-    ``ValueError`` naming ``name`` and ``what`` it is (the codecs' one field check)."""
+def int_in_range(name: str, value: Any, lo: int, hi: int | None, what: str) -> int:
+    """``value`` as a plain int in ``lo..hi`` (``hi`` None: ``>= lo``; numpy integers accepted,
+    floats not), else a readable ``ValueError`` naming ``name`` and ``what`` it is: the codecs'
+    field check and the host toolbox's count check (``gate``, ``rate``, ``max_tries`` ...)."""
+    span = f"{lo}..{hi}" if hi is not None else f">= {lo}"
     try:
         v = operator.index(value)
     except TypeError:
-        raise ValueError(f"{name} must be an integer {lo}..{hi} ({what}), got {value!r}") from None
-    if not lo <= v <= hi:
-        raise ValueError(f"{name} must be {lo}..{hi} ({what}), got {v}")
+        raise ValueError(f"{name} must be an integer {span} ({what}), got {value!r}") from None
+    if v < lo or (hi is not None and v > hi):
+        raise ValueError(f"{name} must be {span} ({what}), got {v}")
     return v
 
 
