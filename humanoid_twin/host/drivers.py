@@ -495,28 +495,21 @@ def _three(what: str, servos: Any) -> list[Any]:
 def _position_bytes(servos: Any) -> tuple[int, int, int]:
     out = []
     for i, v in enumerate(_three("positions", servos)):
-        deg = _whole(f"position of servo {i + 1}", v)
-        if not -128 <= deg <= 127:
-            raise ValueError(f"position of servo {i + 1} = {deg} deg does not fit int8 (-128..127)")
-        out.append(s8(deg))
+        name = f"position of servo {i + 1}"
+        out.append(s8(int_in_range(name, _whole(name, v), -128, 127, "degrees, int8")))
     return out[0], out[1], out[2]
 
 
 def _unsigned_bytes(what: str, servos: Any) -> tuple[int, int, int]:
     out = []
     for i, v in enumerate(_three(what, servos)):
-        b = _whole(f"{what} of servo {i + 1}", v)
-        if not 0 <= b <= 255:
-            raise ValueError(f"{what} of servo {i + 1} = {b} does not fit a byte (0..255)")
-        out.append(b)
+        name = f"{what} of servo {i + 1}"
+        out.append(int_in_range(name, _whole(name, v), 0, 255, "a byte"))
     return out[0], out[1], out[2]
 
 
 def _scu(scu_id: Any) -> int:
-    scu = _whole("scu_id", scu_id)
-    if not 0 <= scu <= 15:
-        raise ValueError(f"scu_id must fit the OpCode's 4 bits (0..15; slaves are 1..8), got {scu}")
-    return scu
+    return int_in_range("scu_id", _whole("scu_id", scu_id), 0, 15, "the OpCode's 4 bits; slaves are 1..8")
 
 
 def _param(param: Any, allowed: Sequence[int], what: str) -> int:
