@@ -26,7 +26,6 @@ from typing import TYPE_CHECKING, Any
 
 import can
 
-from humanoid_twin.bus.network import BUS_OFF
 from humanoid_twin.hardware import PWM_BUSY_US, PWM_PERIOD_US
 from humanoid_twin.protocol.canframes import (
     ACTUATION_IDS,
@@ -41,7 +40,7 @@ from humanoid_twin.protocol.canframes import (
     unpack_actuation1,
     unpack_actuation2,
 )
-from humanoid_twin.protocol.wire import ErrorState
+from humanoid_twin.protocol.wire import ErrorState, node_name
 from humanoid_twin.slave.database import Global
 
 if TYPE_CHECKING:
@@ -50,6 +49,7 @@ if TYPE_CHECKING:
 __all__ = ["ISR_LATENCY_US", "SlaveCan"]
 
 ISR_LATENCY_US = 20   # end of the received frame -> TXREQ of the answer (docs/firmware.md)
+_BUS_OFF = ErrorState.BUS_OFF.label   # a controller's ``state`` when bus-off
 
 
 class SlaveCan:
@@ -89,7 +89,7 @@ class SlaveCan:
         self.db = db
         self.phase_us = phase_us
         self.controller: Any = None
-        self.node_name = f"slave{address}"
+        self.node_name = node_name(address)
         self._sensor_ids = SENSOR_IDS[address]
         # the two actuation identifiers addressed to this board -> packet index: the destination
         # and operation check of lowISR in one dict lookup
@@ -219,7 +219,7 @@ class SlaveCan:
         """``checkCan`` (table 18): if the controller is bus-off, recover it (``clear_status``).
         Returns True when a recovery was started."""
         c = self.controller
-        if c is not None and c.state == BUS_OFF and not getattr(c, "recovering", False):
+        if c is not None and c.state == _BUS_OFF and not getattr(c, "recovering", False):
             c.clear_status()
             self.bus_off_recoveries += 1
             self.bus_off_seen = True
