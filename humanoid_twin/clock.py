@@ -74,6 +74,15 @@ class Clock:
         self._seq = seq = self._seq + 1
         _heappush(self._queue, (t_us, seq, callback))
 
+    def next_due_us(self) -> int | None:
+        """Virtual time of the earliest pending event (None when nothing is scheduled).
+
+        The CAN wire's fast path: a decision that would be taken at ``t`` can be taken now when
+        nothing is due before ``t`` (no event can run, and so no frame can be requested, in
+        between)."""
+        queue = self._queue
+        return queue[0][0] if queue else None
+
     def run_until(self, t_us: int) -> None:
         """Run every event due at or before ``t_us``, then set ``now_us = t_us``."""
         queue = self._queue

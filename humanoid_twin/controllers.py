@@ -19,7 +19,6 @@ import argparse
 import functools
 import importlib
 import inspect
-import math
 import os
 import sys
 from collections.abc import Callable
@@ -27,6 +26,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from humanoid_twin import host as _host
+from humanoid_twin.cli.argtypes import checked
 from humanoid_twin.host.timebase import now as host_now
 from humanoid_twin.host.timebase import sleep as host_sleep
 from humanoid_twin.monitor import Monitor
@@ -180,14 +180,7 @@ def add_controller_options(p: argparse.ArgumentParser) -> None:
                    f"(default {DEFAULT_HOST_PERIOD_MS})")
 
 
-def _period_ms(text: str) -> float:
-    try:
-        v = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a number of milliseconds: {text!r}") from None
-    if not math.isfinite(v) or not 1 <= v <= 10_000:
-        raise argparse.ArgumentTypeError(f"must be 1..10000 ms, got {text!r}")
-    return v
+_period_ms = checked(float, "a number of milliseconds", lambda v: 1 <= v <= 10_000, "must be 1..10000 ms")
 
 
 def controller_run_options(args: argparse.Namespace) -> dict[str, Any]:

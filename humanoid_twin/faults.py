@@ -30,7 +30,8 @@ from typing import TYPE_CHECKING, Any
 
 from humanoid_twin.clock import US_PER_S
 from humanoid_twin.hardware import FOOT_OF_SCU, N_SERVOS, PWM_PERIOD_US
-from humanoid_twin.protocol.wire import N_SCU
+from humanoid_twin.master.pic import ROUND_US
+from humanoid_twin.protocol.wire import node_error, node_name, scu_error
 
 if TYPE_CHECKING:
     from humanoid_twin.twin import Twin
@@ -40,7 +41,7 @@ __all__ = ["KINDS", "FaultSpec", "FaultSpecError", "parse_fault", "FaultInjector
 
 PUSH_US = 100_000            # a push lasts 100 ms
 DEADLINE_DELAY_US = 3_000    # deadline:NODE: each tick's work starts this late
-BUS_OFF_REFORCE_US = 8_000   # bus-off:NODE@T0-T1: forced again every CAN round until T1
+BUS_OFF_REFORCE_US = ROUND_US  # bus-off:NODE@T0-T1: forced again every CAN round until T1
 MAX_PUSH_N = 1000.0
 
 KINDS: dict[str, str] = {
@@ -104,6 +105,19 @@ def _int(text: str, s: str, what: str, lo: int, hi: int) -> int:
     return v
 
 
+def _address(text: str, s: str, what: str, error: Callable[[Any, str], str | None]) -> int:
+    """``s`` as a node or SCU address, checked by the protocol's ``error`` (``scu_error`` or
+    ``node_error``); a :class:`FaultSpecError` naming ``what`` otherwise."""
+    try:
+        v: Any = int(s)
+    except ValueError:
+        v = s                               # the check names it: "must be an integer ..."
+    reason = error(v, what)
+    if reason is not None:
+        raise _bad(text, reason)
+    return int(v)
+
+
 def parse_fault(text: str) -> FaultSpec:
     """``KIND[:ARG][@T0[-T1]]`` -> :class:`FaultSpec`; :class:`FaultSpecError` (one line) if bad."""
     m = _SPEC.match(text.strip())
@@ -120,20 +134,20 @@ def parse_fault(text: str) -> FaultSpec:
         if not 0.0 <= arg <= 1.0:
             raise _bad(text, f"probability P must be in [0, 1], got {arg_s}")
     elif kind in ("silent", "bus-off"):
-        arg = _int(text, arg_s, "NODE (0 Master, 1-8 Slaves)", 0, N_SCU)
+        arg = _address(text, arg_s, "NODE (0 Master, 1-8 Slaves)", node_error)
     elif kind == "deadline":
-        arg = _int(text, arg_s, "NODE (a Slave: only Slaves have a deadline)", 1, N_SCU)
+        arg = _address(text, arg_s, "NODE (a Slave: only Slaves have a deadline)", scu_error)
     elif kind == "force-noise":
         arg = _int(text, arg_s, "COUNTS", 1, 255)
     elif kind == "force-stuck":
-        arg = _int(text, arg_s, "SCU", 1, N_SCU)
+        arg = _address(text, arg_s, "SCU", scu_error)
         if arg not in FOOT_OF_SCU:
             raise _bad(text, f"SCU {arg} has no force-sensing foot (feet: {sorted(FOOT_OF_SCU)})")
     elif kind == "servo-stuck":
         scu_s, dot, servo_s = arg_s.partition(".")
         if not dot:
             raise _bad(text, f"servo-stuck needs SCU.SERVO (e.g. 1.3), got {arg_s!r}")
-        arg = (_int(text, scu_s, "SCU", 1, N_SCU), _int(text, servo_s, "SERVO", 1, N_SERVOS))
+        arg = (_address(text, scu_s, "SCU", scu_error), _int(text, servo_s, "SERVO", 1, N_SERVOS))
     else:  # push
         arg = _number(text, arg_s, "NEWTONS")
         if arg == 0 or abs(arg) > MAX_PUSH_N:
@@ -151,10 +165,6 @@ def parse_fault(text: str) -> FaultSpec:
     if kind == "push" and t1 is not None:
         raise _bad(text, "a push lasts 100 ms: give its start only, push:NEWTONS@T0")
     return FaultSpec(kind, arg, t0, t1, text.strip())
-
-
-def _node_name(node: int) -> str:
-    return "master" if node == 0 else f"slave{node}"
 
 
 class FaultInjector:
@@ -201,7 +211,7 @@ class FaultInjector:
             self._can[k] = a
             self._set_can()
         elif k == "silent":
-            twin.network.silence(_node_name(a), True)
+            twin.network.silence(node_name(a), True)
         elif k == "bus-off":
             self._bus_off(spec)
         elif k == "serial-noise":
@@ -222,7 +232,7 @@ class FaultInjector:
 
     def _bus_off(self, spec: FaultSpec) -> None:
         twin = self.twin
-        twin.network.force_bus_off(_node_name(spec.arg))
+        twin.network.force_bus_off(node_name(spec.arg))
         if spec.t1_s is not None:
             nxt = twin.clock.now_us + BUS_OFF_REFORCE_US
             if nxt < spec.t1_s * US_PER_S:
@@ -235,7 +245,7 @@ class FaultInjector:
             self._can[k] = 0.0
             self._set_can()
         elif k == "silent":
-            twin.network.silence(_node_name(a), False)
+            twin.network.silence(node_name(a), False)
         elif k == "serial-noise":
             twin.link.set_noise(0.0, seed=self.seed * 7919 + 1)
         elif k == "force-noise":

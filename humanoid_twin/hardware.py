@@ -75,6 +75,10 @@ CURRENT_PULSE_FULL_US = 1000    # stall current -> 1000 us -> 100
 FORCE_ADC_MAX = 255             # 8-bit ADC
 FORCE_N_PER_COUNT = 0.2         # 8-bit count -> newtons (255 counts = 51 N)
 FORCE_CALIBRATION_VALUE = 128   # offset(7 bit) = 128 - mean(7 bit)
+# Smallest sum of the four 7-bit force values for which a foot's CoP means something: 8 counts of
+# 7 bits = 16 counts of the 8-bit ADC = 3.2 N, about 6 % of the robot's weight. Below it the foot
+# is taken as unloaded (in the air): the Slave's calcCoP and the host's calccop (docs/firmware.md).
+COP_MIN_LOAD = 8
 
 # Table 12 (seed 000), foot frame: x to the robot's right, y forward, millimetres.
 # Order: front-left, front-right, rear-left, rear-right.
@@ -86,6 +90,8 @@ FORCE_SENSOR_XY_MM: tuple[tuple[float, float], ...] = (
     (-35.0, -62.5),
     (34.0, -62.5),
 )
+FORCE_SENSOR_NAMES: tuple[str, str, str, str] = ("front-left", "front-right", "rear-left", "rear-right")
+FORCE_SENSOR_LABELS: tuple[str, str, str, str] = ("FL", "FR", "RL", "RR")   # the DBC's signal names
 FOOT_LENGTH_MM = 200.0          # seed 002 slide 3: foot print 20 x 8 cm
 FOOT_WIDTH_MM = 80.0
 

@@ -46,12 +46,7 @@ from humanoid_twin.protocol.wire import ControlType
 from humanoid_twin.slave.laws import install_laws
 from humanoid_twin.twin import Twin
 
-CONTROL_CHOICES: dict[str, int] = {
-    "none": ControlType.NO_CONTROL,
-    "locomotion": ControlType.LOCOMOTION_CONTROL,
-    "reaction": ControlType.REACTION_CONTROL,
-    "balance": ControlType.BALANCE_CONTROL,
-}
+CONTROL_CHOICES: dict[str, int] = {t.label: t for t in ControlType}   # run --control
 BOOT_TIMEOUT_S = 5.0
 TILT_RATE_DEG_S = 1.0       # "the floor platform tilts slowly": 1 degree per second
 SETTLE_S = 2.0

@@ -39,6 +39,7 @@ from typing import Any
 from humanoid_twin.host.planners import control_row
 from humanoid_twin.host.timebase import sleep as host_sleep
 from humanoid_twin.monitor import Monitor
+from humanoid_twin.plant.plant import TILT_MAX_DEG as PLATFORM_TILT_MAX_DEG
 from humanoid_twin.protocol.wire import ControlType
 from humanoid_twin.scenarios import (
     SETTLE_S,
@@ -55,8 +56,8 @@ from humanoid_twin.sweep import Point, run_sweep
 from humanoid_twin.twin import Twin
 
 FOLLOW_RATIO = 8          # the follower complies 8 times as fast as the leader balances
-TILT_MAX_DEG = 44.0       # the platform's range is +-45 deg
 TILT_RES_DEG = 1.0        # bisection resolution
+TILT_MAX_DEG = PLATFORM_TILT_MAX_DEG - TILT_RES_DEG   # the top of the search, one step inside the platform
 
 
 @dataclass(frozen=True)

@@ -24,30 +24,26 @@ REPO = Path(__file__).resolve().parents[1]
 if str(REPO) not in sys.path:  # generate from this checkout, installed or not
     sys.path.insert(0, str(REPO))
 
-from humanoid_twin.hardware import SCU_NAMES  # noqa: E402
+from humanoid_twin.hardware import FORCE_SENSOR_LABELS, FORCE_SENSOR_NAMES, SCU_NAMES  # noqa: E402
 from humanoid_twin.protocol import canframes as cf  # noqa: E402
-from humanoid_twin.protocol.rs232 import ControlType  # noqa: E402
-from humanoid_twin.protocol.wire import ErrorState  # noqa: E402
+from humanoid_twin.protocol import wire  # noqa: E402
+from humanoid_twin.protocol.wire import SCUS, ControlType, ErrorState  # noqa: E402
 
 DBC_PATH = REPO / "humanoid_twin" / "protocol" / cf.DBC_RESOURCE
 
-# Section names as in seed 002 slide 19.
-SECTIONS = {
-    1: "Right Leg",
-    2: "Left Leg",
-    3: "Right Hip",
-    4: "Left Hip",
-    5: "Body",
-    6: "Right Arm",
-    7: "Left Arm",
-    8: "Head",
-}
+# Section names as in seed 002 slide 19 ("Right Leg" ...), from the boards' names.
+SECTIONS = {k: SCU_NAMES[k].replace("_", " ").title() for k in SCUS}
 
 CONTROL_CHOICES = OrderedDict((int(t), t.name) for t in ControlType)
 CAN_STATE_CHOICES = OrderedDict((int(e), e.label) for e in ErrorState)
 # The four force sensors of a foot, in the order of Sensors 2 bytes 4-7 (Data1..4 of slide 20):
-# seed 000 table 12's order, front-left, front-right, rear-left, rear-right (docs/model.md).
-FORCE_NAMES = {"FL": "front-left", "FR": "front-right", "RL": "rear-left", "RR": "rear-right"}
+# seed 000 table 12's order, front-left, front-right, rear-left, rear-right (hardware.py).
+FORCE_NAMES = dict(zip(FORCE_SENSOR_LABELS, FORCE_SENSOR_NAMES, strict=True))
+
+
+def _bit(mask: int) -> int:
+    """The bit number of a one-bit mask (0x40 -> 6)."""
+    return mask.bit_length() - 1
 
 
 def _sig(
@@ -87,9 +83,11 @@ def _sig(
 def _sflags(receiver: str) -> list[Signal]:
     return [
         _sig(
-            "SFlagsSource", 0, bit=4, length=4, comment="SFlags bits 7-4: source address", receiver=receiver
+            "SFlagsSource", 0, bit=cf.SFLAGS_SOURCE_SHIFT, length=8 - cf.SFLAGS_SOURCE_SHIFT,
+            comment="SFlags bits 7-4: source address", receiver=receiver
         ),
-        _sig("SFlagsIndex", 0, bit=3, length=1, comment="SFlags bit 3: packet index", receiver=receiver),
+        _sig("SFlagsIndex", 0, bit=_bit(cf.SFLAGS_INDEX), length=1, comment="SFlags bit 3: packet index",
+             receiver=receiver),
     ]
 
 
@@ -97,7 +95,7 @@ def _sflags1_supervisor() -> list[Signal]:
     """Sensors 1 SFlags bits 2-0, zero in seed 002 slide 20: the Slave's supervisor flags
     (docs/supervisor.md, ``canframes.SFLAGS_WATCHDOG`` / ``SFLAGS_CAN_STATE``)."""
     return [
-        _sig("Watchdog", 0, bit=cf.SFLAGS_WATCHDOG.bit_length() - 1, length=1, receiver="MASTER",
+        _sig("Watchdog", 0, bit=_bit(cf.SFLAGS_WATCHDOG), length=1, receiver="MASTER",
              comment="SFlags bit 2: CAN watchdog, no actuation for 5 ticks, holding the last reference"),
         _sig("CanState", 0, bit=0, length=cf.SFLAGS_CAN_STATE.bit_length(), receiver="MASTER",
              maximum=int(ErrorState.BUS_OFF), choices=CAN_STATE_CHOICES,
@@ -134,16 +132,17 @@ def messages_for(k: int) -> list[Message]:
             _sig(
                 f"Type{i}",
                 6,
-                bit=2 * (i - 1),
-                length=2,
+                bit=wire.CONTROL_TYPE_BITS * (i - 1),
+                length=wire.CONTROL_TYPE_BITS,
                 choices=CONTROL_CHOICES,
                 comment=f"Control bits {2 * i - 1}-{2 * i - 2}: control type of servo {i}",
                 receiver=scu,
             )
             for i in (1, 2, 3)
         ),
-        _sig("Calib", 6, bit=6, length=1, comment="Control bit 6: calibration requested", receiver=scu),
-        _sig("PWM", 6, bit=7, length=1, comment="Control bit 7: PWM on", receiver=scu),
+        _sig("Calib", 6, bit=_bit(wire.CONTROL_CALIB), length=1,
+             comment="Control bit 6: calibration requested", receiver=scu),
+        _sig("PWM", 6, bit=_bit(wire.CONTROL_PWM), length=1, comment="Control bit 7: PWM on", receiver=scu),
         _sig("KD3", 7, comment="KD gain, servo 3", receiver=scu),
     ]
     act2 = [
@@ -181,22 +180,28 @@ def messages_for(k: int) -> list[Message]:
             _sig(
                 f"Fin{i}",
                 7,
-                bit=i - 1,
+                bit=_bit(wire.STATUS_FINISHED[i - 1]),
                 length=1,
                 comment=f"Status bit {i - 1}: motion of servo {i} finished",
                 receiver="MASTER",
             )
             for i in (1, 2, 3)
         ),
-        _sig("FinOne", 7, bit=3, length=1, comment="Status bit 3: one motion finished", receiver="MASTER"),
-        _sig("FinAll", 7, bit=4, length=1, comment="Status bit 4: all motions finished", receiver="MASTER"),
-        _sig("Deadline", 7, bit=5, length=1, comment="Status bit 5: deadline violated", receiver="MASTER"),
-        _sig("Calib", 7, bit=6, length=1, comment="Status bit 6: calibration complete", receiver="MASTER"),
-        _sig("PWM", 7, bit=7, length=1, comment="Status bit 7: PWM on", receiver="MASTER"),
+        *(
+            _sig(name, 7, bit=_bit(mask), length=1, comment=f"Status bit {_bit(mask)}: {what}",
+                 receiver="MASTER")
+            for name, mask, what in (
+                ("FinOne", wire.STATUS_ONE_FINISHED, "one motion finished"),
+                ("FinAll", wire.STATUS_ALL_FINISHED, "all motions finished"),
+                ("Deadline", wire.STATUS_DEADLINE, "deadline violated"),
+                ("Calib", wire.STATUS_CALIB, "calibration complete"),
+                ("PWM", wire.STATUS_PWM, "PWM on"),
+            )
+        ),
     ]
     sen2 = [
         *_sflags("MASTER"),
-        _sig("LawStopped", 0, bit=cf.SFLAGS2_LAW.bit_length() - 1, length=1, receiver="MASTER",
+        _sig("LawStopped", 0, bit=_bit(cf.SFLAGS2_LAW), length=1, receiver="MASTER",
              comment="SFlags bit 2: a control law of this Slave was stopped (docs/controllers.md)"),
         *(
             _sig(
@@ -260,9 +265,9 @@ def build_database() -> Database:
     nodes = [Node("MASTER", comment="Master unit (address 0): RS-232 <-> CAN distributer")]
     nodes += [
         Node(f"SCU{k}", comment=f"Slave {k}: {SECTIONS[k]} (address {k}, {SCU_NAMES[k]})")
-        for k in range(1, 9)
+        for k in SCUS
     ]
-    messages = [m for k in range(1, 9) for m in messages_for(k)]
+    messages = [m for k in SCUS for m in messages_for(k)]
     return Database(messages=messages, nodes=nodes, version="1.0")
 
 

@@ -1,4 +1,5 @@
-"""Shared fixtures: a twin and a booted twin (the one boot sequence, ``scenarios.boot``).
+"""Shared fixtures: a twin and a booted twin (the one boot sequence, ``scenarios.boot``), and
+``humanoid-twin serve`` in a child process.
 
 Tests that attach an observer (a monitor, a CAN log, faults, supervisor listeners) before the
 boot build their twin themselves and call :func:`humanoid_twin.scenarios.boot` on it.
@@ -6,6 +7,9 @@ boot build their twin themselves and call :func:`humanoid_twin.scenarios.boot` o
 
 from __future__ import annotations
 
+import select
+import subprocess
+import sys
 from collections.abc import Iterator
 from typing import Any
 
@@ -28,3 +32,41 @@ def booted_twin(twin: Twin) -> tuple[Twin, Any]:
     """``(twin, H)``: the seed-0 twin after :func:`~humanoid_twin.scenarios.boot` (PWM on,
     every Slave calibrated) and the host end ``H`` of its RS-232 link."""
     return twin, boot(twin)
+
+
+class ServeStarter:
+    """``proc, port = serve(*args)`` starts ``humanoid-twin serve ARGS`` and returns once it has
+    printed its port (30 s at most); ``serve.stop(proc)`` stops it (SIGTERM, then kill). Every
+    child still running when the test ends is stopped."""
+
+    def __init__(self) -> None:
+        self.procs: list[subprocess.Popen] = []
+
+    def __call__(self, *args: str) -> tuple[subprocess.Popen, str]:
+        proc = subprocess.Popen([sys.executable, "-m", "humanoid_twin.cli.main", "serve", *args],
+                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        self.procs.append(proc)
+        ready, _, _ = select.select([proc.stdout], [], [], 30)
+        if not ready:
+            self.stop(proc)
+            raise AssertionError("serve printed no port in 30 s")
+        return proc, proc.stdout.readline().strip()
+
+    @staticmethod
+    def stop(proc: subprocess.Popen) -> None:
+        proc.terminate()
+        try:
+            proc.wait(10)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait(10)
+
+
+@pytest.fixture
+def serve() -> Iterator[ServeStarter]:
+    """A :class:`ServeStarter`: ``humanoid-twin serve`` in child processes, stopped after the test."""
+    starter = ServeStarter()
+    yield starter
+    for proc in starter.procs:
+        if proc.poll() is None:
+            starter.stop(proc)

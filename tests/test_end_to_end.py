@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import json
 import os
-import select
 import subprocess
 import sys
 import textwrap
@@ -151,25 +150,6 @@ def test_same_seed_same_bytes_and_trajectories():
 # --------------------------------------------------------------------------------------------
 # serve: a pty and a TCP port for clients in other processes
 # --------------------------------------------------------------------------------------------
-def _serve(*args: str) -> tuple[subprocess.Popen, str]:
-    proc = subprocess.Popen([sys.executable, "-m", "humanoid_twin.cli.main", "serve", *args],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    ready, _, _ = select.select([proc.stdout], [], [], 30)
-    if not ready:
-        proc.kill()
-        raise AssertionError("serve printed no port in 30 s")
-    port = proc.stdout.readline().strip()
-    return proc, port
-
-
-def _stop(proc: subprocess.Popen) -> None:
-    proc.terminate()
-    try:
-        proc.wait(10)
-    except subprocess.TimeoutExpired:
-        proc.kill()
-
-
 def _client(code: str, port: str, timeout: float = 60) -> dict:
     r = subprocess.run([sys.executable, "-c", textwrap.dedent(code), port], capture_output=True, text=True,
                        timeout=timeout)
@@ -222,13 +202,13 @@ def _bcc(*b: int) -> int:
     return x
 
 
-def test_plain_pyserial_client_over_a_pty():
-    proc, port = _serve("--pty")
+def test_plain_pyserial_client_over_a_pty(serve):
+    proc, port = serve("--pty")
     try:
         assert port.startswith("/dev/pts/") and os.path.exists(port)
         out = _client(PLAIN_CLIENT, port)
     finally:
-        _stop(proc)
+        serve.stop(proc)
     assert out["test"] == "fa f9 f8 f7 f6 f5"
     assert all(r.startswith("fb") for r in out["boot"])
     assert out["move"] == f"fb 20 1e ec 2d {_bcc(0xFB, 0x20, 0x1E, 0xEC, 0x2D):02x}"   # echo, BCC recomputed
@@ -262,14 +242,14 @@ DRIVER_CLIENT = r"""
 
 
 @pytest.mark.parametrize("mode", ["pty", "tcp"])
-def test_host_drivers_unchanged_against_serve(mode):
-    proc, port = _serve("--tcp", "0") if mode == "tcp" else _serve("--pty")
+def test_host_drivers_unchanged_against_serve(mode, serve):
+    proc, port = serve("--tcp", "0") if mode == "tcp" else serve("--pty")
     try:
         if mode == "tcp":
             assert port.startswith("socket://127.0.0.1:")
         out = _client(DRIVER_CLIENT, port, timeout=90)
     finally:
-        _stop(proc)
+        serve.stop(proc)
     assert out["test_ok"] and out["can_error"] == 0
     n_scu, n_servo, n_t = out["shape"]
     assert (n_scu, n_servo) == (4, 3) and n_t == out["n"] > 10
@@ -278,12 +258,12 @@ def test_host_drivers_unchanged_against_serve(mode):
     assert abs(abs(final[0, 2]) - 20) <= 2 and abs(abs(final[1, 2]) - 20) <= 2
 
 
-def test_serve_keeps_real_time():
-    proc, port = _serve("--tcp", "0")
+def test_serve_keeps_real_time(serve):
+    proc, port = serve("--tcp", "0")
     try:
         time.sleep(3.0)
         assert proc.poll() is None
     finally:
-        _stop(proc)
+        serve.stop(proc)
     err = proc.stderr.read()
     assert "behind real time" not in err, err

@@ -70,7 +70,7 @@ def run(tmp_path_factory):
     d = tmp_path_factory.mktemp("rec")
     rrd, asc = d / "run.rrd", d / "run.asc"
     with Twin(seed=0) as twin:
-        with Recorder(rrd, twin) as rec, CanLog(asc, twin.network) as log:
+        with Recorder(rrd, twin, chunk_s=2.0) as rec, CanLog(asc, twin.network) as log:
             _drive(twin)
             facts = {
                 "knee_true": [twin.plant.servo_angle_deg(scu, 2) for scu in (1, 2)],

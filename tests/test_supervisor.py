@@ -4,9 +4,6 @@ board within one 8 ms round), reset, the serial bytes, and the host's typed erro
 
 from __future__ import annotations
 
-import select
-import subprocess
-import sys
 import time
 
 import pytest
@@ -108,28 +105,9 @@ def test_estop_pwm_off_within_one_round_then_reset_and_power_on_back_to_ready() 
 
 
 # --- over a real pty / TCP port: humanoid-twin serve in another process ----------------------
-def _serve(*args: str) -> tuple[subprocess.Popen, str]:
-    proc = subprocess.Popen([sys.executable, "-m", "humanoid_twin.cli.main", "serve", *args],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    ready, _, _ = select.select([proc.stdout], [], [], 30)
-    if not ready:
-        proc.kill()
-        raise AssertionError("serve printed no port in 30 s")
-    return proc, proc.stdout.readline().strip()
-
-
-def _stop(proc: subprocess.Popen) -> None:
-    proc.terminate()
-    try:
-        proc.wait(10)
-    except subprocess.TimeoutExpired:
-        proc.kill()
-        proc.wait(10)
-
-
 @pytest.mark.parametrize("where", ["--pty", "--tcp"])
-def test_estop_reset_power_on_over_serve(where) -> None:
-    proc, port = _serve(*(["--tcp", "0"] if where == "--tcp" else ["--pty"]))
+def test_estop_reset_power_on_over_serve(where, serve) -> None:
+    proc, port = serve(*(["--tcp", "0"] if where == "--tcp" else ["--pty"]))
     try:
         with drivers.HumanoidClient(port, timeout=0.5) as robot:
             power_on(robot.serial_port, timeout=10.0)
@@ -155,11 +133,11 @@ def test_estop_reset_power_on_over_serve(where) -> None:
             assert robot.supervisor().mode_name == "ready"
             robot.set_positions(1, [0, 5, 0])   # accepted again
     finally:
-        _stop(proc)
+        serve.stop(proc)
 
 
-def test_serve_fault_a_client_sees_the_supervisor_refuse_the_boot() -> None:
-    proc, port = _serve("--pty", "--fault", "silent:5")
+def test_serve_fault_a_client_sees_the_supervisor_refuse_the_boot(serve) -> None:
+    proc, port = serve("--pty", "--fault", "silent:5")
     try:
         with drivers.HumanoidClient(port, timeout=0.5) as robot:
             with pytest.raises(drivers.SupervisorRefused, match="mode safe, latched fault silent on node 5"):
@@ -169,7 +147,7 @@ def test_serve_fault_a_client_sees_the_supervisor_refuse_the_boot() -> None:
             sup = robot.supervisor()
             assert (sup.mode_name, sup.fault_name, sup.node, sup.nfaults) == ("safe", "silent", 5, 1)
     finally:
-        _stop(proc)
+        serve.stop(proc)
 
 
 # A clean seeded run puts on the bus exactly what it did before the supervisor existed: the

@@ -126,6 +126,18 @@ class CanController:
         """
         return self._net._request(self, msg)
 
+    def send_at(self, msg: can.Message, t_us: int) -> bool:
+        """:meth:`send` with its TXREQ at ``t_us`` (``now <= t_us``), for a caller that knows
+        nothing runs on the clock before then (``clock.next_due_us() > t_us``): the same as
+        scheduling an event at ``t_us`` that calls :meth:`send`, without the event (a Slave's
+        answer, ``ISR_LATENCY_US`` after the actuation packet). Checks are made now; the frame
+        joins arbitration at ``t_us``. ``ValueError`` if an event is due before ``t_us``."""
+        clock = self._net.clock
+        nxt = clock.next_due_us()
+        if t_us < clock.now_us or (nxt is not None and nxt <= t_us):
+            raise ValueError(f"send_at({t_us}): an event is due before it (now {clock.now_us}, next {nxt})")
+        return self._net._request(self, msg, t_us)
+
     def abort(self) -> int:
         """Abort every TX not yet on the wire (TXABT). Returns how many frames were dropped."""
         if not self._n_pending:
@@ -383,7 +395,8 @@ class CanNetwork(ErrorConfinement, ForeignPath):
         return (bits * US_PER_S + br - 1) // br
 
     # -- transmit path -----------------------------------------------------------------------
-    def _request(self, ctrl: CanController, msg: can.Message) -> bool:
+    def _request(self, ctrl: CanController, msg: can.Message, at: int = -1) -> bool:
+        """TXREQ of ``msg`` by ``ctrl`` now (or at ``at``, :meth:`CanController.send_at`)."""
         if ctrl._off or ctrl._n_pending >= ctrl._tx_buffers:
             ctrl.tx_refused += 1
             return False
@@ -402,7 +415,7 @@ class CanNetwork(ErrorConfinement, ForeignPath):
         bits = _frame_bits_cached(arb, bytes(data))
         self._seq = seq = self._seq + 1
         clock = self.clock
-        now = clock.now_us
+        now = clock.now_us if at < 0 else at
         # arbitration key: the ID, then request order (ties never happen in the protocol)
         self._pending.append(((arb << 40) | seq, now, ctrl, msg, bits))
         ctrl._n_pending += 1
@@ -433,9 +446,8 @@ class CanNetwork(ErrorConfinement, ForeignPath):
         self._start = start
         self.clock.schedule(start + 1, self._decide_cb)
 
-    def _decide(self) -> None:
-        """End of the SOF bit: every request made up to the SOF instant has joined arbitration."""
-        start = self._start
+    def _pick(self, start: int) -> tuple[int, int, CanController, can.Message, int] | None:
+        """The arbitration winner among the frames requested up to ``start`` (lowest ID)."""
         best = None
         for e in self._pending:
             if e[1] > start:
@@ -445,6 +457,12 @@ class CanNetwork(ErrorConfinement, ForeignPath):
                 continue
             if best is None or e[0] < best[0]:
                 best = e
+        return best
+
+    def _decide(self) -> None:
+        """End of the SOF bit: every request made up to the SOF instant has joined arbitration."""
+        start = self._start
+        best = self._pick(start)
         if best is None:
             self._busy = False
             nxt = None
@@ -461,6 +479,11 @@ class CanNetwork(ErrorConfinement, ForeignPath):
                 self._start = max(nxt, now, self._idle_from)
                 self.clock.schedule(self._start + 1, self._decide_cb)
             return
+        self._begin(best, start)
+
+    def _begin(self, best: tuple[int, int, CanController, can.Message, int], start: int) -> None:
+        """``best`` won the arbitration at ``start``: it is on the wire until its end (or its
+        error frame)."""
         if self._recovering:
             self._close_recovery_runs(start)
         self._pending.remove(best)
@@ -521,13 +544,38 @@ class CanNetwork(ErrorConfinement, ForeignPath):
                                channel=self.channel, dlc=msg.dlc, data=bytes(msg.data), is_rx=True)
             for lst in self._listeners:
                 lst.on_message_received(copy)
-        if self._pending:
+        pending = self._pending
+        if pending:
             # _kick, inlined: the wire is idle from the end of the intermission
             idle = self._idle_from
             start = t if t > idle else idle
             self._busy = True
             self._start = start
             clock = self.clock
+            # The fast path: the SOF of the next frame is the first instant a pending frame may
+            # start; when nothing on the clock is due up to it, nothing can request (or abort)
+            # a frame before then, and the decision taken now is the one _decide would take
+            # there (the same winner, the same instants; one clock event less per frame).
+            first = None
+            if not self._recovering:
+                for e in pending:
+                    c = e[2]
+                    if c.silenced:
+                        first = None
+                        break
+                    r = e[1] if e[1] > c._suspend_until else c._suspend_until
+                    if first is None or r < first:
+                        first = r
+            if first is not None:
+                sof = first if first > start else start
+                nxt = clock.next_due_us()
+                if nxt is None or nxt > sof + 1:
+                    self._start = sof
+                    best = self._pick(sof)
+                    if best is not None:
+                        self._begin(best, sof)
+                        return
+                    self._start = start
             clock.schedule_fast(start + 1, self._decide_cb)
         else:
             self._busy = False

@@ -42,7 +42,7 @@ class _Wire(Protocol):
 class _Medium:
     """All TwinBus members of one channel (the electrical bus)."""
 
-    __slots__ = ("channel", "members", "wire", "_routes", "_std_routes")
+    __slots__ = ("channel", "members", "wire", "_routes")
 
     def __init__(self, channel: str) -> None:
         self.channel = channel
@@ -50,12 +50,11 @@ class _Medium:
         self.wire: _Wire | None = None
         # (arbitration_id, is_extended) -> members whose filters accept it
         self._routes: dict[tuple[int, bool], tuple[TwinBus, ...]] = {}
-        # the same for standard (11-bit) IDs, keyed by the ID alone (no tuple per frame)
-        self._std_routes: dict[int, tuple[TwinBus, ...]] = {}
 
     def invalidate(self) -> None:
         self._routes.clear()
-        self._std_routes.clear()
+        for b in self.members:
+            b.forget_routes()
 
     def route(self, arbitration_id: int, is_extended: bool) -> tuple[TwinBus, ...]:
         key = (arbitration_id, is_extended)
@@ -64,8 +63,6 @@ class _Medium:
             r = tuple(b for b in self.members
                       if not b.muted and b.accepts(arbitration_id, is_extended))
             self._routes[key] = r
-            if not is_extended:
-                self._std_routes[arbitration_id] = r
         return r
 
 
@@ -151,7 +148,10 @@ class TwinBus(BusABC):
         self.channel = channel
         self.channel_info = f"humanoid_twin channel {channel}"
         self.receive_own_messages = bool(receive_own_messages)
-        self.rx_callback: RxCallback | None = rx_callback
+        self._rx_callback: RxCallback | None = rx_callback
+        # standard ID -> the receive interrupts of the members that take this bus's frame with
+        # that ID, when all of them have one (the common case: no per-member work per frame)
+        self._fast: dict[int, tuple[RxCallback, ...]] = {}
         self._queue: deque[can.Message] = deque()
         self._cond = threading.Condition()
         self._waiting = 0
@@ -164,6 +164,22 @@ class TwinBus(BusABC):
         except BaseException:
             _leave(self)
             raise
+
+    @property
+    def rx_callback(self) -> RxCallback | None:
+        """The receive interrupt called with each accepted frame (None: frames queue for recv)."""
+        return self._rx_callback
+
+    @rx_callback.setter
+    def rx_callback(self, cb: RxCallback | None) -> None:
+        self._rx_callback = cb
+        medium = getattr(self, "_medium", None)
+        if medium is not None:
+            medium.invalidate()
+
+    def forget_routes(self) -> None:
+        """Drop the cached delivery routes (the medium's members, filters or mutes changed)."""
+        self._fast.clear()
 
     # -- filters -----------------------------------------------------------------------------
     def _apply_filters(self, filters: can.typechecking.CanFilters | None) -> None:
@@ -216,16 +232,22 @@ class TwinBus(BusABC):
 
     def deliver(self, msg: can.Message) -> None:
         """Hand ``msg`` (already on the wire) to every accepting member of the channel."""
+        extended = msg.is_extended_id
+        if not extended:
+            cbs = self._fast.get(msg.arbitration_id)
+            if cbs is not None:
+                for cb in cbs:
+                    cb(msg)
+                return
         medium = self._medium
-        if msg.is_extended_id:
-            route = medium._routes.get((msg.arbitration_id, True))
-        else:
-            route = medium._std_routes.get(msg.arbitration_id)
-        if route is None:
-            route = medium.route(msg.arbitration_id, msg.is_extended_id)
-        for bus in route:
-            if bus is self and not self.receive_own_messages:
-                continue
+        route = medium.route(msg.arbitration_id, extended)
+        targets = [b for b in route if b is not self or self.receive_own_messages]
+        if not extended and all(b.rx_callback is not None for b in targets):
+            cbs = self._fast[msg.arbitration_id] = tuple(b.rx_callback for b in targets)  # type: ignore[misc]
+            for cb in cbs:
+                cb(msg)
+            return
+        for bus in targets:
             cb = bus.rx_callback
             if cb is not None:
                 cb(msg)

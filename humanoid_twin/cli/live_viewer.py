@@ -15,6 +15,8 @@ import threading
 import time
 from typing import Any
 
+from humanoid_twin.clock import US_PER_S
+
 FRAME_US = 20_000          # one refresh per 20 ms of simulated time (50 frames per simulated second)
 
 
@@ -65,7 +67,7 @@ class LiveViewer:
         twin = self._twin
         now_us = twin.clock.now_us
         twin.plant.advance_to(now_us)                      # the physics due up to now, then draw it
-        ahead = (now_us - self._sim0_us) / 1e6 - (time.perf_counter() - self._wall0)
+        ahead = (now_us - self._sim0_us) / US_PER_S - (time.perf_counter() - self._wall0)
         if ahead > 0:
             time.sleep(ahead)                              # real time: the twin runs faster
         handle.sync()

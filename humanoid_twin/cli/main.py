@@ -237,19 +237,25 @@ class _Outputs:
         self.temp.clear()
 
 
+def _check_seed_and_tilt(args: argparse.Namespace) -> None:
+    """``--seed`` and ``--tilt``, the options ``run`` and ``serve`` share (one line, exit 2)."""
+    from humanoid_twin.plant.plant import TILT_MAX_DEG
+
+    if not 0 <= args.seed <= SEED_MAX:
+        raise _usage_error(f"--seed {args.seed}: must be 0..{SEED_MAX}")
+    if abs(args.tilt) > TILT_MAX_DEG:
+        raise _usage_error(f"--tilt {args.tilt:g}: the platform tilts within +-{TILT_MAX_DEG:g} degrees")
+
+
 def _check_run_inputs(args: argparse.Namespace) -> None:
     """Every value of ``run`` checked before anything runs or is written (one line, exit 2)."""
-    from humanoid_twin.plant.plant import TILT_MAX_DEG
     from humanoid_twin.scenarios import plan
 
     if args.no_record and args.out is not None:
         raise _usage_error(f"--no-record and --out {args.out} contradict each other: drop one")
     if args.duration is not None and args.duration > MAX_DURATION_S:
         raise _usage_error(f"--duration {args.duration:g}: at most {MAX_DURATION_S:g} simulated seconds")
-    if not 0 <= args.seed <= SEED_MAX:
-        raise _usage_error(f"--seed {args.seed}: must be 0..{SEED_MAX}")
-    if abs(args.tilt) > TILT_MAX_DEG:
-        raise _usage_error(f"--tilt {args.tilt:g}: the platform tilts within +-{TILT_MAX_DEG:g} degrees")
+    _check_seed_and_tilt(args)
     try:   # the planners' own limits (T fits one byte of 20 ms ticks, each joint's range ...)
         plan(args.scenario, T=args.T, motion=args.motion, perna=args.perna)
     except ValueError as exc:
@@ -389,13 +395,9 @@ def _print_summary(summary: dict, as_json: bool) -> None:
 
 def cmd_serve(args: argparse.Namespace) -> int:
     """``humanoid-twin serve``: real-time pacing, the port on the first stdout line."""
-    from humanoid_twin.plant.plant import TILT_MAX_DEG
     from humanoid_twin.serve import ServeError, serve
 
-    if not 0 <= args.seed <= SEED_MAX:
-        raise _usage_error(f"--seed {args.seed}: must be 0..{SEED_MAX}")
-    if abs(args.tilt) > TILT_MAX_DEG:
-        raise _usage_error(f"--tilt {args.tilt:g}: the platform tilts within +-{TILT_MAX_DEG:g} degrees")
+    _check_seed_and_tilt(args)
     _check_can_interface(args)
     if args.tcp is not None:
         _check_bind(args.host, args.tcp)

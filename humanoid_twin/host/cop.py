@@ -24,11 +24,13 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from humanoid_twin.hardware import (
+    COP_MIN_LOAD,
     FOOT_LENGTH_MM,
     FOOT_OF_SCU,
     FOOT_WIDTH_MM,
     FORCE_CALIBRATION_VALUE,
     FORCE_N_PER_COUNT,
+    FORCE_SENSOR_NAMES,
     FORCE_SENSOR_XY_MM,
     N_SPECIAL_SENSORS,
 )
@@ -37,7 +39,7 @@ from humanoid_twin.host.drivers import ErrorCode, readjoint, readspecial
 from humanoid_twin.host.planners import TICK_S
 from humanoid_twin.host.tables import RobotTables, default_tables
 from humanoid_twin.protocol.rs232 import PARAM_CURRENT, PARAM_POSITION
-from humanoid_twin.protocol.wire import check_scu
+from humanoid_twin.protocol.wire import check_scu, int_in_range
 
 __all__ = [
     "COP_MIN_LOAD",
@@ -51,9 +53,8 @@ __all__ = [
     "cop_realtime",
 ]
 
-COP_MIN_LOAD = 8                          # 7-bit counts over the 4 sensors (slave data.COP_MIN_LOAD)
 N_PER_COUNT7 = 2 * FORCE_N_PER_COUNT      # one 7-bit count in newtons
-SENSOR_NAMES = ("front-left", "front-right", "rear-left", "rear-right")
+SENSOR_NAMES = FORCE_SENSOR_NAMES
 _SENSOR_XY = np.asarray(FORCE_SENSOR_XY_MM, dtype=float)   # (4, 2)
 
 
@@ -277,8 +278,7 @@ def cop_realtime(
     s = _scu(scu)
     duration = _check_time("duration", duration)
     dt = _check_time("dt", dt, positive=False)
-    if chunk < 1:
-        raise ValueError(f"chunk must be >= 1 sample, got {chunk}")
+    chunk = int_in_range("chunk", chunk, 1, None, "samples")
     rec = rr.RecordingStream("humanoid_twin_cop_realtime")
     if mode == "spawn":
         rec.spawn()

@@ -66,8 +66,6 @@ from humanoid_twin.protocol.rs232 import (
     PARAM_TEST,
     PARAM_VELOCITY,
     SUPERVISOR_ESTOP,
-    SUPERVISOR_FAULTS,
-    SUPERVISOR_MODES,
     SUPERVISOR_READ,
     SUPERVISOR_RESET,
     TEST_MESSAGE,
@@ -79,6 +77,8 @@ from humanoid_twin.protocol.rs232 import (
     hexdump,
     parse_opcode,
     s8,
+    supervisor_fault_name,
+    supervisor_mode_name,
 )
 from humanoid_twin.protocol.wire import (
     BAUDRATE,
@@ -90,6 +90,7 @@ from humanoid_twin.protocol.wire import (
     STATUS_PWM,
     ControlType,
     ErrorState,
+    int_in_range,
 )
 
 __all__ = [
@@ -204,12 +205,12 @@ class SupervisorRefused(InvalidRequest):  # noqa: N818  (the names of the task's
     @property
     def mode_name(self) -> str:
         """``safe`` or ``estop``."""
-        return SUPERVISOR_MODES.get(self.mode, f"mode {self.mode}")
+        return supervisor_mode_name(self.mode)
 
     @property
     def fault_name(self) -> str | None:
         """The latched fault's name (``silent``, ``bus_off`` ...), None without one."""
-        return SUPERVISOR_FAULTS.get(self.fault)
+        return supervisor_fault_name(self.fault)
 
 
 class PortError(CommError):
@@ -299,12 +300,12 @@ class SupervisorResult(NamedTuple):
     @property
     def mode_name(self) -> str | None:
         """The mode's name, None on error."""
-        return None if self.mode is None else SUPERVISOR_MODES.get(self.mode, f"mode {self.mode}")
+        return None if self.mode is None else supervisor_mode_name(self.mode)
 
     @property
     def fault_name(self) -> str | None:
         """The latched fault's name, None when there is none (or on error)."""
-        return None if not self.fault else SUPERVISOR_FAULTS.get(self.fault, f"fault {self.fault}")
+        return supervisor_fault_name(self.fault)
 
 
 class ReadSpecialResult(NamedTuple):
@@ -325,12 +326,7 @@ class ReadSpecialResult(NamedTuple):
 def gate_to_port(gate: int, platform: str | None = None) -> str:
     """The MATLAB ``gate`` number (1, 2, ...) as a platform port name: ``COMn`` on Windows,
     ``/dev/ttyS{n-1}`` elsewhere (COM1 is ``/dev/ttyS0`` on Linux)."""
-    try:
-        n = operator.index(gate)
-    except TypeError:
-        raise ValueError(f"gate must be a port number 1, 2, ..., got {gate!r}") from None
-    if n < 1:
-        raise ValueError(f"gate must be a port number 1, 2, ..., got {n}")
+    n = int_in_range("gate", gate, 1, None, "a port number 1, 2, ...")
     platform = sys.platform if platform is None else platform
     return f"COM{n}" if platform.startswith("win") else f"/dev/ttyS{n - 1}"
 
@@ -352,12 +348,7 @@ def initcom(
         url = gate_to_port(port)
     if not url:
         raise ValueError("port must be a non-empty pyserial URL or device name")
-    try:
-        rate = operator.index(rate)
-    except TypeError:
-        raise ValueError(f"rate must be an integer baud rate, got {rate!r}") from None
-    if rate <= 0:
-        raise ValueError(f"rate must be a positive baud rate, got {rate}")
+    rate = int_in_range("rate", rate, 1, None, "a baud rate")
     if not (isinstance(timeout, int | float) and timeout > 0 and math.isfinite(timeout)):
         raise ValueError(f"timeout must be a positive number of seconds, got {timeout!r}")
     if url.startswith("twin://"):
@@ -398,13 +389,7 @@ def killcom(H: Any) -> int:
 
 
 def _tries(max_tries: int) -> int:
-    try:
-        n = operator.index(max_tries)
-    except TypeError:
-        raise ValueError(f"max_tries must be an integer >= 1, got {max_tries!r}") from None
-    if n < 1:
-        raise ValueError(f"max_tries must be >= 1, got {n}")
-    return n
+    return int_in_range("max_tries", max_tries, 1, None, "tries")
 
 
 def _reset(port: Any) -> None:
@@ -510,28 +495,21 @@ def _three(what: str, servos: Any) -> list[Any]:
 def _position_bytes(servos: Any) -> tuple[int, int, int]:
     out = []
     for i, v in enumerate(_three("positions", servos)):
-        deg = _whole(f"position of servo {i + 1}", v)
-        if not -128 <= deg <= 127:
-            raise ValueError(f"position of servo {i + 1} = {deg} deg does not fit int8 (-128..127)")
-        out.append(s8(deg))
+        name = f"position of servo {i + 1}"
+        out.append(s8(int_in_range(name, _whole(name, v), -128, 127, "degrees, int8")))
     return out[0], out[1], out[2]
 
 
 def _unsigned_bytes(what: str, servos: Any) -> tuple[int, int, int]:
     out = []
     for i, v in enumerate(_three(what, servos)):
-        b = _whole(f"{what} of servo {i + 1}", v)
-        if not 0 <= b <= 255:
-            raise ValueError(f"{what} of servo {i + 1} = {b} does not fit a byte (0..255)")
-        out.append(b)
+        name = f"{what} of servo {i + 1}"
+        out.append(int_in_range(name, _whole(name, v), 0, 255, "a byte"))
     return out[0], out[1], out[2]
 
 
 def _scu(scu_id: Any) -> int:
-    scu = _whole("scu_id", scu_id)
-    if not 0 <= scu <= 15:
-        raise ValueError(f"scu_id must fit the OpCode's 4 bits (0..15; slaves are 1..8), got {scu}")
-    return scu
+    return int_in_range("scu_id", _whole("scu_id", scu_id), 0, 15, "the OpCode's 4 bits; slaves are 1..8")
 
 
 def _param(param: Any, allowed: Sequence[int], what: str) -> int:
@@ -673,7 +651,7 @@ def raise_for_error(result: tuple[Any, ...], what: str = "request", H: Any = Non
     is_apply = len(rx) == 6 and parse_opcode(rx[1])[0] <= Op.APPLY_CONTROL
     if H is not None and code == ErrorCode.INVALID_REQUEST and is_apply:
         sup = readsupervisor(H)
-        if sup.error == ErrorCode.OK and sup.mode in (3, 4):
+        if sup.error == ErrorCode.OK and sup.mode_name in ("safe", "estop"):
             fault = f", latched fault {sup.fault_name} on node {sup.node}" if sup.fault else ""
             raise SupervisorRefused(
                 f"{what}: refused by the Master's supervisor: mode {sup.mode_name}{fault} "
@@ -714,12 +692,12 @@ class Supervisor(NamedTuple):
     @property
     def mode_name(self) -> str:
         """``standby`` / ``self_check`` / ``ready`` / ``safe`` / ``estop``."""
-        return SUPERVISOR_MODES.get(self.mode, f"mode {self.mode}")
+        return supervisor_mode_name(self.mode)
 
     @property
     def fault_name(self) -> str | None:
         """The latched fault's name, None without one."""
-        return SUPERVISOR_FAULTS.get(self.fault) if self.fault else None
+        return supervisor_fault_name(self.fault)
 
 
 class HumanoidClient:

@@ -11,7 +11,6 @@ fails while sampling leaves NaN in its place (and a ``RuntimeWarning`` says how 
 from __future__ import annotations
 
 import math
-import operator
 import warnings
 from collections.abc import Iterable, Sequence
 from typing import Any, NamedTuple
@@ -42,7 +41,7 @@ from humanoid_twin.protocol.rs232 import (
     PARAM_SPECIAL,
     PARAM_VELOCITY,
 )
-from humanoid_twin.protocol.wire import N_SCU, SCUS, ControlType, check_scu
+from humanoid_twin.protocol.wire import N_SCU, SCUS, ControlType, check_scu, int_in_range
 
 __all__ = [
     "ALL_SCUS",
@@ -55,6 +54,7 @@ __all__ = [
     "power_on",
     "period_ticks",
     "send_gains",
+    "apply_joint",
 ]
 
 ALL_SCUS: tuple[int, ...] = SCUS
@@ -109,7 +109,11 @@ def servo_command(scu: int, leg_angles: Any, tables: RobotTables | None = None) 
     return [int(v) for v in np.rint(servo)]
 
 
-def _apply(H: Any, scu: int, param: int, data: Sequence[int], what: str) -> None:
+def apply_joint(H: Any, scu: int, param: int, data: Sequence[int], what: str) -> None:
+    """``applyjoint(H, scu_id, param, servos)`` (seed 000 table 20) that raises instead of
+    returning an error code: a request that still fails after its retries raises the
+    :class:`~humanoid_twin.host.drivers.CommError` subclass of its error, its message starting
+    ``"<what> (SCU <scu>)"``. The motion and trajectory routines move the servos through it."""
     raise_for_error(applyjoint(H, scu, param, data), f"{what} (SCU {scu})", H)
 
 
@@ -253,11 +257,11 @@ def exe_traj(
                     sent_k[s] = ks
         for s in scus_t:
             if sent_ticks.get(s) != ticks[m]:
-                _apply(H, s, PARAM_VELOCITY, [ticks[m]] * 3, "set period")
+                apply_joint(H, s, PARAM_VELOCITY, [ticks[m]] * 3, "set period")
                 sent_ticks[s] = ticks[m]
         t_start = timebase.now(H)
         for j, s in enumerate(scus_t):
-            _apply(H, s, PARAM_POSITION, commands[m][j], "set positions")
+            apply_joint(H, s, PARAM_POSITION, commands[m][j], "set positions")
         t_end = t_start + tt_in[m] + (textra if m == n_m - 1 else 0.0)
         sampler.run_until(t_end, t0, dt)
     return sampler.result()
@@ -279,12 +283,7 @@ def recycle(
     Returns the servo positions sent, per SCU in ``scus`` order.
     """
     scus_t = _scus(scus)
-    try:
-        sp = operator.index(speed)
-    except TypeError:
-        raise ValueError(f"speed must be a whole number of 20 ms ticks, got {speed!r}") from None
-    if not 0 <= sp <= 255:
-        raise ValueError(f"speed must be 0..255 ticks of 20 ms, got {sp}")
+    sp = int_in_range("speed", speed, 0, 255, "ticks of 20 ms")
     tab = tables or default_tables()
     sent = []
     for s in scus_t:
@@ -293,9 +292,9 @@ def recycle(
             servo = correct(s, servo, tab)
         sent.append([int(v) for v in np.rint(limit(s, servo, tab))])
     for s in scus_t:
-        _apply(H, s, PARAM_VELOCITY, [sp] * 3, "recycle period")
+        apply_joint(H, s, PARAM_VELOCITY, [sp] * 3, "recycle period")
     for s, cmd in zip(scus_t, sent, strict=True):
-        _apply(H, s, PARAM_POSITION, cmd, "recycle positions")
+        apply_joint(H, s, PARAM_POSITION, cmd, "recycle positions")
     if wait and sp:
         timebase.sleep(H, sp * TICK_S)
     return sent
@@ -359,9 +358,9 @@ def power_on(
     scus_t = _scus(scus)
     tab = tables or default_tables()
     for s in scus_t:
-        _apply(H, s, PARAM_VELOCITY, [0, 0, 0], "power on period")
-        _apply(H, s, PARAM_POSITION, servo_command(s, np.zeros(N_SERVOS), tab), "power on positions")
-        _apply(H, s, PARAM_SPECIAL, [1, int(bool(calibrate)), 0], "PWM on")
+        apply_joint(H, s, PARAM_VELOCITY, [0, 0, 0], "power on period")
+        apply_joint(H, s, PARAM_POSITION, servo_command(s, np.zeros(N_SERVOS), tab), "power on positions")
+        apply_joint(H, s, PARAM_SPECIAL, [1, int(bool(calibrate)), 0], "PWM on")
     status = {s: 0 for s in scus_t}
     if not wait:
         return status

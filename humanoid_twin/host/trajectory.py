@@ -12,7 +12,6 @@ zero velocity at both ends, ``theta(tau) = pos0 + (posF - pos0) (3 tau^2 - 2 tau
 from __future__ import annotations
 
 import math
-import operator
 from typing import Any
 
 import numpy as np
@@ -20,10 +19,10 @@ import numpy as np
 from humanoid_twin.hardware import N_SERVOS
 from humanoid_twin.host import timebase
 from humanoid_twin.host.drivers import ErrorCode, raise_for_error, readjoint
-from humanoid_twin.host.motion import _apply, _scus, period_ticks, send_gains
+from humanoid_twin.host.motion import apply_joint, period_ticks, send_gains
 from humanoid_twin.host.planners import TICK_S, control_row
 from humanoid_twin.protocol.rs232 import PARAM_CURRENT, PARAM_POSITION, PARAM_VELOCITY
-from humanoid_twin.protocol.wire import ControlType
+from humanoid_twin.protocol.wire import ControlType, check_scu, int_in_range
 
 __all__ = [
     "TEST_SCU",
@@ -75,12 +74,7 @@ def predict_trajectory(
     degrees per second at the 20 ms tick). ``pos0``/``posF`` scalars or vectors (one column per
     servo).
     """
-    try:
-        n = operator.index(n_samples)
-    except TypeError:
-        raise ValueError(f"n_samples must be an integer >= 2, got {n_samples!r}") from None
-    if n < 2:
-        raise ValueError(f"n_samples must be >= 2, got {n}")
+    n = int_in_range("n_samples", n_samples, 2, None, "samples")
     r = float(ratio)
     if not (math.isfinite(r) and 0 < r <= 1):
         raise ValueError(f"ratio must be in (0, 1], got {ratio!r}")
@@ -128,7 +122,7 @@ def sample_traj3(
     positions in degrees, velocities in degrees per second, currents 0..100; ``posT``/``velT``
     the ideal cubic at the sample times.
     """
-    (s,) = _scus([scu])
+    s = check_scu(scu, "scu")
     p0 = _three("pos0", pos0)
     pF = _three("posF", posF)
     gains = np.asarray(k, dtype=float)
@@ -145,13 +139,13 @@ def sample_traj3(
         raise ValueError(f"dt must be > 0 s, got {dt!r}")
     send_gains(H, s, control_row(control, gains))
     # to pos0 and rest there
-    _apply(H, s, PARAM_VELOCITY, [settle_ticks] * 3, "sample_traj period")
-    _apply(H, s, PARAM_POSITION, [int(v) for v in np.rint(p0)], "sample_traj pos0")
+    apply_joint(H, s, PARAM_VELOCITY, [settle_ticks] * 3, "sample_traj period")
+    apply_joint(H, s, PARAM_POSITION, [int(v) for v in np.rint(p0)], "sample_traj pos0")
     timebase.sleep(H, 2 * settle_ticks * TICK_S)
     # the motion
-    _apply(H, s, PARAM_VELOCITY, [ticks] * 3, "sample_traj period")
+    apply_joint(H, s, PARAM_VELOCITY, [ticks] * 3, "sample_traj period")
     t0 = timebase.now(H)
-    _apply(H, s, PARAM_POSITION, [int(v) for v in np.rint(pF)], "sample_traj posF")
+    apply_joint(H, s, PARAM_POSITION, [int(v) for v in np.rint(pF)], "sample_traj posF")
     rows: list[list[float]] = []
     t_end = t0 + T + Textra
     i = 0
@@ -192,7 +186,7 @@ def sample_traj(
     Returns ``array`` (TIME x 6), columns ``[time position velocity current posT velT]``
     (:data:`SAMPLE_TRAJ_COLUMNS`, the manual's order).
     """
-    (s,) = _scus([scu])
+    s = check_scu(scu, "scu")
     kk = np.asarray(k, dtype=float)
     if kk.shape != (3,):
         raise ValueError(f"k must be [KI, KP, KD], got {k!r}")

@@ -20,6 +20,7 @@ from humanoid_twin.protocol.canframes import (
     MASTER_ADDRESS,
     OP_SENSORS,
     SFLAGS_SUPERVISOR,
+    STD_ID_MAX,
     PayloadError,
     control_byte,
     master_filters,
@@ -28,6 +29,7 @@ from humanoid_twin.protocol.canframes import (
     unpack_sensors1,
     unpack_sensors2,
 )
+from humanoid_twin.protocol.wire import node_name
 
 if TYPE_CHECKING:
     from collections.abc import Callable
@@ -38,7 +40,8 @@ if TYPE_CHECKING:
 class MasterCan:
     """The Master's CAN module: database <-> packets, over :class:`CanDrivers`."""
 
-    def __init__(self, clock: Clock, network: CanNetwork, db: Database, name: str = "master") -> None:
+    def __init__(self, clock: Clock, network: CanNetwork, db: Database,
+                 name: str = node_name(MASTER_ADDRESS)) -> None:
         self.clock = clock
         self.db = db
         self.drivers = CanDrivers(network, name)
@@ -103,7 +106,7 @@ class MasterCan:
         c = db.counters
         c.can_rx_frames += 1
         ident = msg.arbitration_id
-        src, dst, index, op = ID_FIELDS[ident] if ident <= 0x7FF else (-1, -1, 0, -1)
+        src, dst, index, op = ID_FIELDS[ident] if ident <= STD_ID_MAX else (-1, -1, 0, -1)
         s = db.sensors.get(src)
         if s is None or op != OP_SENSORS or dst != MASTER_ADDRESS:
             return self._reject(ident, f"id 0x{ident:03X}: not a sensor packet from slave 1..8 to Master")

@@ -11,6 +11,8 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
+from humanoid_twin.protocol.canframes import packet_index
+
 if TYPE_CHECKING:
     from collections.abc import Callable
 
@@ -87,7 +89,7 @@ class CanDrivers:
     def rx_interrupt(self, msg: can.Message) -> None:
         """The receive path of the controller: the frame lands in RXB0 or RXB1 by its index bit
         (filters of slide 23). A buffer still full is overwritten and counted (RXBnOVFL)."""
-        n = (msg.arbitration_id >> 2) & 1
+        n = packet_index(msg.arbitration_id)
         if self.rxb[n] is not None:
             self.rx_overflows += 1
         self.rxb[n] = msg

@@ -25,11 +25,11 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, NamedTuple
 
-from humanoid_twin.bus.network import BUS_OFF
 from humanoid_twin.clock import US_PER_S
 from humanoid_twin.hardware import FOOT_OF_SCU, FORCE_SENSOR_XY_MM, PWM_PERIOD_US
+from humanoid_twin.master.pic import ROUND_US
 from humanoid_twin.protocol.canframes import SFLAGS2_LAW, SFLAGS_CAN_STATE
-from humanoid_twin.protocol.rs232 import SUPERVISOR_FAULTS, SUPERVISOR_MODES
+from humanoid_twin.protocol.rs232 import PARAM_SPECIAL, SUPERVISOR_FAULTS, SUPERVISOR_MODES, Op
 from humanoid_twin.protocol.wire import (
     MASTER_ADDRESS,
     POS_LIMIT_DEG,
@@ -37,6 +37,7 @@ from humanoid_twin.protocol.wire import (
     STATUS_CALIB,
     STATUS_DEADLINE,
     STATUS_PWM,
+    ErrorState,
 )
 from humanoid_twin.slave.data import calcCoP
 
@@ -51,29 +52,28 @@ __all__ = [
     "FAULT_NAMES", "Fault", "SupervisorConfig", "Supervisor",
 ]
 
-# --- modes (wire numbers) ------------------------------------------------------------------------
-STANDBY = 0
-SELF_CHECK = 1
-READY = 2
-SAFE = 3
-ESTOP = 4
+# --- modes and faults: the wire numbers of rs232.SUPERVISOR_MODES / SUPERVISOR_FAULTS, by name ---
+_MODE = {name: code for code, name in SUPERVISOR_MODES.items()}
+STANDBY = _MODE["standby"]
+SELF_CHECK = _MODE["self_check"]
+READY = _MODE["ready"]
+SAFE = _MODE["safe"]
+ESTOP = _MODE["estop"]
 MODE_NAMES: dict[int, str] = SUPERVISOR_MODES
 
-# --- faults (wire codes, JSON names) ----------------------------------------------------------------
-SILENT = 1
-BUS_OFF_FAULT = 2
-SLAVE_CAN = 3
-OVER_TRAVEL = 4
-DEADLINE = 5
-BALANCE = 6
-HOST_LINK = 7
-LAW = 8                          # a Slave stopped a control law that failed (docs/controllers.md)
+_FAULT = {name: code for code, name in SUPERVISOR_FAULTS.items()}
+SILENT = _FAULT["silent"]
+BUS_OFF_FAULT = _FAULT["bus_off"]
+SLAVE_CAN = _FAULT["slave_can"]
+OVER_TRAVEL = _FAULT["over_travel"]
+DEADLINE = _FAULT["deadline"]
+BALANCE = _FAULT["balance"]
+HOST_LINK = _FAULT["host_link"]
+LAW = _FAULT["law"]              # a Slave stopped a control law that failed (docs/controllers.md)
 FAULT_NAMES: dict[int, str] = SUPERVISOR_FAULTS
 
-ROUND_US = 8_000                 # one CAN schedule round (module PIC: 8 slaves x 1 ms)
-_OP_APPLY_JOINT = 0
-_OP_APPLY_CONTROL = 1
-_PARAM_SPECIAL = 3
+_OP_APPLY_JOINT = int(Op.APPLY_JOINT)
+_BUS_OFF = ErrorState.BUS_OFF.label      # a CAN controller's ``state`` when bus-off
 
 # The sensor rectangle of a foot (table 12, mm): the edge the firmware's CoP can reach.
 _XS = [p[0] for p in FORCE_SENSOR_XY_MM]
@@ -182,7 +182,7 @@ class Supervisor:
     def applied(self, op: int, param: int, data: tuple[int, int, int]) -> None:
         """An APPLY was accepted: a PWM-on request starts the self-check; PWM off on every board
         in ``ready`` goes back to ``standby``."""
-        if op != _OP_APPLY_JOINT or param != _PARAM_SPECIAL:
+        if op != _OP_APPLY_JOINT or param != PARAM_SPECIAL:
             return
         if data[0] == 1:
             if self.mode == STANDBY:
@@ -221,7 +221,7 @@ class Supervisor:
         ctl = self.can.drivers.controller
         master_down = False
         # the Master's own CAN: bus-off, or nothing of its own got on the wire for N rounds
-        if ctl.state == BUS_OFF:
+        if ctl.state == _BUS_OFF:
             self._fault(BUS_OFF_FAULT, 0, now)
             master_down = True
         sent = ctl.frames_sent

@@ -42,6 +42,7 @@ from humanoid_twin.protocol.rs232 import (
     TEST_MESSAGE,
     Op,
     Request,
+    bcc,
 )
 from humanoid_twin.protocol.wire import ErrorState, from_s8, s8
 
@@ -143,7 +144,7 @@ class Usart:
         if not self.usartStoreRx(byte):
             return
         buf = self.rx_buf
-        if buf[0] ^ buf[1] ^ buf[2] ^ buf[3] ^ buf[4] != buf[5]:
+        if bcc(buf[:5]) != buf[5]:
             self._resync()
             return
         self.ext_len = 0

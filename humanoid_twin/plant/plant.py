@@ -216,9 +216,9 @@ class Plant:
         self._body_names = tuple(m.body(b).name for b in range(1, m.nbody))
         self._force6 = np.zeros(6)
         # pad index 0..7 (foot * 4 + table-12 index) of every geom, -1 for the other geoms
-        self._pad_id = np.full(m.ngeom, -1, dtype=np.int64)
+        self._pad_list: list[int] = [-1] * m.ngeom
         for g, (f, k) in self._pad_of_geom.items():
-            self._pad_id[g] = 4 * f + k
+            self._pad_list[g] = 4 * f + k
         self._pyramidal = m.opt.cone == mujoco.mjtCone.mjCONE_PYRAMIDAL
 
         # the hardware: potentiometer offsets, drawn once per plant (what calibration estimates)
@@ -586,14 +586,21 @@ class Plant:
         tilt = math.degrees(math.acos(max(-1.0, min(1.0, float(trunk_z[2])))))
         height = float(d.xpos[self._trunk, 2])
 
-        pad_f, foot_sum, world_sum, contact_pts = self._contact_sums()
-        foot_tot = pad_f.sum(axis=1)
-        total = float(foot_tot.sum())
-        foot_cop = {foot: (foot_sum[f] / foot_tot[f] if foot_tot[f] > C.LOADED_MIN_N else None)
+        pids, fns, pts = self._loaded_contacts()
+        pad_f = [0.0] * 8
+        wx = wy = 0.0
+        for p, f, xyz in zip(pids, fns, pts, strict=True):
+            pad_f[p] += f
+            wx += f * xyz[0]
+            wy += f * xyz[1]
+        foot_tot = [pad_f[0] + pad_f[1] + pad_f[2] + pad_f[3], pad_f[4] + pad_f[5] + pad_f[6] + pad_f[7]]
+        total = foot_tot[0] + foot_tot[1]
+        foot_cop = {foot: (np.array(self._foot_cop(f, pids, fns, pts, foot_tot[f]))
+                           if foot_tot[f] > C.LOADED_MIN_N else None)
                     for f, foot in enumerate(FOOT_BODIES)}
-        hull = convex_hull(contact_pts.tolist())
+        hull = convex_hull([(xyz[0], xyz[1]) for xyz in pts])
         if total > C.LOADED_MIN_N:
-            cop = world_sum / total
+            cop = np.array((wx / total, wy / total))
             margin = signed_distance(cop, hull) * 1000.0
         else:
             cop = None
@@ -605,7 +612,7 @@ class Plant:
             trunk_height_m=height,
             joint_angles_deg=dict(zip(self._joint_names,
                                       (d.qpos[self._joint_qadr] * _DEG_PER_RAD).tolist(), strict=True)),
-            pad_forces_n={foot: pad_f[f] for f, foot in enumerate(FOOT_BODIES)},
+            pad_forces_n={foot: np.array(pad_f[4 * f:4 * f + 4]) for f, foot in enumerate(FOOT_BODIES)},
             foot_cop_mm=foot_cop,
             cop_world_xy=cop,
             support_polygon_xy=np.array(hull, dtype=float).reshape(-1, 2),
@@ -614,37 +621,63 @@ class Plant:
             fell=tilt > C.FELL_TILT_DEG or height < C.FELL_HEIGHT_M,
         )
 
-    def _contact_sums(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """Pad/ground contacts: pad normal forces (2 x 4, N), per foot sum of F * (x, y) in its
-        foot frame (2 x 2, N mm), sum of F * (x, y) in the world (2,), contact points (k, 2)."""
+    def _loaded_contacts(self, foot: int = -1) -> tuple[list[int], list[float], list[list[float]]]:
+        """Pad/ground contacts pressing on the pads (of foot index ``foot``, or of both): pad
+        index 0..7 (foot * 4 + table-12 index), normal force (N, as ``mj_contactForce`` gives
+        it) and world position (m). Plain Python over the handful of contacts: cheaper than
+        numpy's per-call cost on such small arrays."""
         d = self.data
-        pad_f = np.zeros(8)
-        foot_sum = np.zeros((2, 2))       # sum of F * (x, y) in each foot frame, mm
-        world_sum = np.zeros(2)
-        contact_pts = np.zeros((0, 2))
         n = d.ncon
-        if n:
-            con = d.contact
-            geom = con.geom[:n]
-            pid = np.maximum(self._pad_id[geom[:, 0]], self._pad_id[geom[:, 1]])
-            adr = con.efc_address[:n]
-            sel = np.flatnonzero((pid >= 0) & (adr >= 0))
-            if sel.size:
-                fn = self._normal_forces(sel, adr, con.dim[:n])
-                loaded = fn > 0.0
-                sel, fn = sel[loaded], fn[loaded]
-                pid = pid[sel]
-                pos = con.pos[:n][sel]
-                np.add.at(pad_f, pid, fn)
-                for f, foot in enumerate(FOOT_BODIES):
-                    on = pid // 4 == f
-                    if on.any():
-                        s = self._sole_site[foot]
-                        local = (pos[on] - d.site_xpos[s]) @ d.site_xmat[s].reshape(3, 3)
-                        foot_sum[f] = fn[on] @ local[:, :2] * 1000.0
-                world_sum = fn @ pos[:, :2]
-                contact_pts = pos[:, :2]
-        return pad_f.reshape(2, 4), foot_sum, world_sum, contact_pts
+        pids: list[int] = []
+        fns: list[float] = []
+        pts: list[list[float]] = []
+        if not n:
+            return pids, fns, pts
+        con = d.contact
+        pad = self._pad_list
+        geoms = con.geom[:n].tolist()
+        adrs = con.efc_address[:n].tolist()
+        dims = con.dim[:n].tolist()
+        pos = con.pos
+        ef = d.efc_force
+        pyramidal = self._pyramidal
+        for c in range(n):
+            g0, g1 = geoms[c]
+            p = pad[g0]
+            q = pad[g1]
+            if q > p:
+                p = q
+            a = adrs[c]
+            if p < 0 or a < 0 or (foot >= 0 and p >> 2 != foot):
+                continue
+            if pyramidal and dims[c] == 3:
+                # pyramidal cone: the normal force is the sum of the pyramid's edge forces
+                e = ef[a:a + 4].tolist()
+                f = e[0] + e[1] + e[2] + e[3]
+            else:
+                mujoco.mj_contactForce(self.model, d, c, self._force6)
+                f = float(self._force6[0])
+            if f > 0.0:
+                pids.append(p)
+                fns.append(f)
+                pts.append(pos[c].tolist())
+        return pids, fns, pts
+
+    def _foot_cop(self, f: int, pids: list[int], fns: list[float], pts: list[list[float]],
+                  total: float) -> tuple[float, float]:
+        """CoP (foot frame, mm) of foot index ``f`` from the loaded contacts (``total``: its load):
+        the force-weighted mean contact point, in the sole site's frame."""
+        sx = sy = sz = 0.0
+        for p, fn, xyz in zip(pids, fns, pts, strict=True):
+            if p >> 2 == f:
+                sx += fn * xyz[0]
+                sy += fn * xyz[1]
+                sz += fn * xyz[2]
+        s = self._sole_site[FOOT_BODIES[f]]
+        o = self.data.site_xpos[s].tolist()
+        r = self.data.site_xmat[s].tolist()
+        vx, vy, vz = sx / total - o[0], sy / total - o[1], sz / total - o[2]
+        return ((vx * r[0] + vy * r[3] + vz * r[6]) * 1000.0, (vx * r[1] + vy * r[4] + vz * r[7]) * 1000.0)
 
     def foot_cop_mm(self, foot: str) -> np.ndarray | None:
         """Ground-truth CoP of one foot (foot frame, mm), None when unloaded: the part of
@@ -653,21 +686,9 @@ class Plant:
         if foot not in FOOT_BODIES:
             raise PlantInputError(f"unknown foot {foot!r}; the feet are {', '.join(FOOT_BODIES)}")
         f = FOOT_BODIES.index(foot)
-        pad_f, foot_sum, _, _ = self._contact_sums()
-        tot = pad_f[f].sum()
-        return foot_sum[f] / tot if tot > C.LOADED_MIN_N else None
-
-    def _normal_forces(self, sel: np.ndarray, adr: np.ndarray, dim: np.ndarray) -> np.ndarray:
-        """Normal force of the contacts ``sel``: with pyramidal cones the sum of the pyramid's
-        edge forces (what ``mj_contactForce`` returns as its normal component)."""
-        d = self.data
-        if self._pyramidal and bool((dim[sel] == 3).all()):
-            return d.efc_force[adr[sel, None] + _FACETS_CONDIM3].sum(axis=1)
-        out = np.empty(sel.size)
-        for k, c in enumerate(sel.tolist()):
-            mujoco.mj_contactForce(self.model, d, c, self._force6)
-            out[k] = self._force6[0]
-        return out
+        pids, fns, pts = self._loaded_contacts(f)
+        tot = sum(fns)
+        return np.array(self._foot_cop(f, pids, fns, pts, tot)) if tot > C.LOADED_MIN_N else None
 
     def body_poses(self) -> tuple[tuple[str, ...], np.ndarray, np.ndarray]:
         """Names, world positions (n, 3) and quaternions (n, 4, xyzw) of every body but the world."""
@@ -727,6 +748,6 @@ _PULSE_MIN_US = hardware.pulse_from_deg(-POS_LIMIT_DEG)
 _PULSE_MAX_US = hardware.pulse_from_deg(POS_LIMIT_DEG)
 _DEG_PER_RAD = 180.0 / math.pi
 _COUNTS_PER_N = 1.0 / hardware.FORCE_N_PER_COUNT
-_FACETS_CONDIM3 = np.arange(4)
+
 _SIDES = {"r": "r_foot", "right": "r_foot", "r_foot": "r_foot",
           "l": "l_foot", "left": "l_foot", "l_foot": "l_foot"}

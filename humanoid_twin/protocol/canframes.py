@@ -49,8 +49,10 @@ __all__ = [
     "SENSOR_IDS",
     "PayloadError",
     "SlaveStatus",
+    "STD_ID_MAX",
     "can_id",
     "split_id",
+    "packet_index",
     "master_filters",
     "slave_filters",
     "control_byte",
@@ -58,6 +60,8 @@ __all__ = [
     "status_byte",
     "parse_status_byte",
     "supervisor_flags",
+    "SFLAGS_SOURCE_SHIFT",
+    "SFLAGS_INDEX",
     "SFLAGS_WATCHDOG",
     "SFLAGS_CAN_STATE",
     "SFLAGS_SUPERVISOR",
@@ -81,9 +85,19 @@ OP_SENSORS = 1          # Slave -> Master
 PAYLOAD_LEN = 8         # every packet carries 8 data bytes (slide 20)
 CURRENT_MAX = 100       # Curr1..3 are 0..100 (seed 000 finalizeServoMeasures, docs/firmware.md)
 
+# Identifier layout (slide 18): bits 10-7 source, 6-3 destination, 2 packet index, 1-0 operation.
+STD_ID_MAX = 0x7FF      # an 11-bit standard identifier
+_SRC_SHIFT = 7
+_DST_SHIFT = 3
+_INDEX_SHIFT = 2
+_ADDR_MASK = 0x0F       # 4-bit source and destination addresses
+_OP_MASK = 0x03
+
 # Acceptance masks (seed 002 slide 23). A frame is accepted when (id & mask) == (filter & mask).
-MASTER_MASK = 0b00001111100   # destination + index: frames destined to the Master
-SLAVE_MASK = 0b11110000100    # source + index: frames from the Master (destination NOT in the mask)
+MASTER_MASK = (_ADDR_MASK << _DST_SHIFT) | (1 << _INDEX_SHIFT)  # 0b00001111100 destination + index:
+#                                                                  frames destined to the Master
+SLAVE_MASK = (_ADDR_MASK << _SRC_SHIFT) | (1 << _INDEX_SHIFT)   # 0b11110000100 source + index: frames
+#                                                   from the Master (destination NOT in the mask)
 
 DBC_RESOURCE = "humanoid_twin.dbc"
 
@@ -99,19 +113,26 @@ class PayloadError(ValueError):
 def can_id(src: int, dst: int, index: int, op: int) -> int:
     """11-bit identifier: bits 10-7 source, 6-3 destination, 2 index, 1-0 operation (slide 18).
     ``ValueError`` when a field does not fit its bits."""
-    if not (0 <= src <= 15 and 0 <= dst <= 15 and 0 <= index <= 1 and 0 <= op <= 3):
+    if not (0 <= src <= _ADDR_MASK and 0 <= dst <= _ADDR_MASK and 0 <= index <= 1 and 0 <= op <= _OP_MASK):
         raise ValueError(
             f"CAN id fields out of range: src={src!r} (0..15), dst={dst!r} (0..15), "
             f"index={index!r} (0..1), op={op!r} (0..3)"
         )
-    return (src << 7) | (dst << 3) | (index << 2) | op
+    return (src << _SRC_SHIFT) | (dst << _DST_SHIFT) | (index << _INDEX_SHIFT) | op
 
 
 def split_id(arbitration_id: int) -> tuple[int, int, int, int]:
     """Identifier -> ``(src, dst, index, op)``; ``ValueError`` if not an 11-bit standard id."""
-    if not 0 <= arbitration_id <= 0x7FF:
+    if not 0 <= arbitration_id <= STD_ID_MAX:
         raise ValueError(f"standard CAN id must be 0..0x7FF, got {arbitration_id!r}")
-    return arbitration_id >> 7, (arbitration_id >> 3) & 0x0F, (arbitration_id >> 2) & 1, arbitration_id & 3
+    return (arbitration_id >> _SRC_SHIFT, (arbitration_id >> _DST_SHIFT) & _ADDR_MASK,
+            packet_index(arbitration_id), arbitration_id & _OP_MASK)
+
+
+def packet_index(arbitration_id: int) -> int:
+    """The packet index (bit 2) of an identifier: 0 for Actuation 1 / Sensors 1, 1 for
+    Actuation 2 / Sensors 2; the bit the acceptance filters route to RXB0 / RXB1."""
+    return (arbitration_id >> _INDEX_SHIFT) & 1
 
 
 # Every standard identifier's fields, ``ID_FIELDS[id] = split_id(id)`` (the receive paths' look-up).
@@ -134,10 +155,8 @@ def master_filters() -> list[dict]:
     RXB0 ``0bxxxx00000xx`` (to the Master, index 0), RXB1 ``0bxxxx00001xx`` (index 1), both with
     :data:`MASTER_MASK`. List position 0 = RXB0, 1 = RXB1.
     """
-    return [
-        {"can_id": 0b00000000000, "can_mask": MASTER_MASK, "extended": False},
-        {"can_id": 0b00000000100, "can_mask": MASTER_MASK, "extended": False},
-    ]
+    return [{"can_id": can_id(0, MASTER_ADDRESS, i, 0), "can_mask": MASTER_MASK, "extended": False}
+            for i in (0, 1)]
 
 
 def slave_filters() -> list[dict]:
@@ -147,10 +166,8 @@ def slave_filters() -> list[dict]:
     with :data:`SLAVE_MASK`. The destination is not in the mask: every slave receives every
     Master frame and checks the destination in software (``receiveCanMessage``).
     """
-    return [
-        {"can_id": 0b00000000000, "can_mask": SLAVE_MASK, "extended": False},
-        {"can_id": 0b00000000100, "can_mask": SLAVE_MASK, "extended": False},
-    ]
+    return [{"can_id": can_id(MASTER_ADDRESS, 0, i, 0), "can_mask": SLAVE_MASK, "extended": False}
+            for i in (0, 1)]
 
 
 # --- control, status and SFlags bytes ------------------------------------------------------
@@ -242,19 +259,27 @@ def parse_status_byte(b: int) -> SlaveStatus:
     return _STATUS_TABLE[b]
 
 
+# SFlags, byte 0 of a sensor packet (slide 20): bits 7-4 source address, bit 3 packet index,
+# bits 2-0 zero in the seed (the supervisor's flags below use them).
+SFLAGS_SOURCE_SHIFT = 4
+SFLAGS_INDEX = 0x08
+_SFLAGS_LOW = 0x07
+
+
 def sflags(src: int, index: int) -> int:
     """SFlags byte of a sensor packet (slide 20): bits 7-4 source address, bit 3 index, 2-0 zero."""
-    if not (0 <= src <= 15 and 0 <= index <= 1):
+    if not (0 <= src <= _ADDR_MASK and 0 <= index <= 1):
         raise PayloadError(f"SFlags: source must be 0..15 and index 0..1, got src={src!r}, index={index!r}")
-    return (src << 4) | (index << 3)
+    return (src << SFLAGS_SOURCE_SHIFT) | (SFLAGS_INDEX if index else 0)
 
 
 def _split_sflags(sf: int, index: int, packet: str) -> int:
-    if sf & 0x07:
+    if sf & _SFLAGS_LOW:
         raise PayloadError(f"{packet}: SFlags 0x{sf:02X} has bits 2-0 set (must be zero)")
-    if (sf >> 3) & 1 != index:
-        raise PayloadError(f"{packet}: SFlags 0x{sf:02X} carries index {(sf >> 3) & 1}, expected {index}")
-    return sf >> 4
+    got = 1 if sf & SFLAGS_INDEX else 0
+    if got != index:
+        raise PayloadError(f"{packet}: SFlags 0x{sf:02X} carries index {got}, expected {index}")
+    return sf >> SFLAGS_SOURCE_SHIFT
 
 
 # --- payloads ------------------------------------------------------------------------------
@@ -327,13 +352,13 @@ def pack_sensors1(src: int, pos: Sequence[int], speed: Sequence[int], status: in
     bits 2-0 (:func:`supervisor_flags`; 0 on a healthy board, so the seed's bytes are unchanged).
     """
     try:
-        if not 0 <= src <= 15:
+        if not 0 <= src <= _ADDR_MASK:
             raise ValueError(f"source address must be 0..15, got {src!r}")
-        if not 0 <= flags <= 7 or flags & SFLAGS_CAN_STATE > ErrorState.BUS_OFF:
+        if not 0 <= flags <= _SFLAGS_LOW or flags & SFLAGS_CAN_STATE > ErrorState.BUS_OFF:
             raise ValueError(f"supervisor flags must be 0..7 with CAN state 0..2, got {flags!r}")
         p1, p2, p3 = pos
         v1, v2, v3 = speed
-        return _SEN1.pack((src << 4) | flags, p1, p2, p3, v1, v2, v3, status)
+        return _SEN1.pack((src << SFLAGS_SOURCE_SHIFT) | flags, p1, p2, p3, v1, v2, v3, status)
     except (struct.error, TypeError, ValueError) as exc:
         raise _pack_error("Sensors1", exc, src=src, pos=pos, speed=speed, status=status) from None
 
@@ -375,13 +400,14 @@ def pack_sensors2(src: int, curr: Sequence[int], data4: Sequence[int], law_stopp
     ``law_stopped``: SFlags bit 2 (:data:`SFLAGS2_LAW`).
     """
     try:
-        if not 0 <= src <= 15:
+        if not 0 <= src <= _ADDR_MASK:
             raise ValueError(f"source address must be 0..15, got {src!r}")
         c1, c2, c3 = curr
         d1, d2, d3, d4 = data4
         if c1 > CURRENT_MAX or c2 > CURRENT_MAX or c3 > CURRENT_MAX:
             raise ValueError(f"current must be 0..{CURRENT_MAX}")
-        return _SEN2.pack((src << 4) | 0x08 | (SFLAGS2_LAW if law_stopped else 0), c1, c2, c3, d1, d2, d3, d4)
+        sf = (src << SFLAGS_SOURCE_SHIFT) | SFLAGS_INDEX | (SFLAGS2_LAW if law_stopped else 0)
+        return _SEN2.pack(sf, c1, c2, c3, d1, d2, d3, d4)
     except (struct.error, TypeError, ValueError) as exc:
         raise _pack_error("Sensors2", exc, src=src, curr=curr, data4=data4) from None
 

@@ -52,6 +52,8 @@ __all__ = [
     "SUPERVISOR_RESET",
     "SUPERVISOR_MODES",
     "SUPERVISOR_FAULTS",
+    "supervisor_mode_name",
+    "supervisor_fault_name",
     "ControlType",
     "TEST_MESSAGE",
     "N_SCU",
@@ -115,6 +117,18 @@ SUPERVISOR_FAULTS: dict[int, str] = {1: "silent", 2: "bus_off", 3: "slave_can", 
                                      5: "deadline", 6: "balance", 7: "host_link", 8: "law"}
 
 
+def supervisor_mode_name(mode: int) -> str:
+    """A MODE byte's name (``"ready"``, ``"safe"`` ...); ``"mode N"`` for a number not in
+    :data:`SUPERVISOR_MODES`."""
+    return SUPERVISOR_MODES.get(mode, f"mode {mode}")
+
+
+def supervisor_fault_name(fault: int | None) -> str | None:
+    """A FAULTCODE byte's name (``"silent"``, ``"bus_off"`` ...); None for 0 (no fault) or
+    None; ``"fault N"`` for a number not in :data:`SUPERVISOR_FAULTS`."""
+    return SUPERVISOR_FAULTS.get(fault, f"fault {fault}") if fault else None
+
+
 TEST_MESSAGE = bytes([0xFA, 0xF9, 0xF8, 0xF7, 0xF6, 0xF5])  # usartSendTestMsg (seed 000 table 3)
 
 _MAX_CONTROL_TYPE = int(max(ControlType))   # seed 000 table 9: 0..3
@@ -141,6 +155,26 @@ def _byte(name: str, value: int) -> int:
     return int_in_range(name, value, 0, 255, "a byte")
 
 
+def _frame(b0: int, b1: int, b2: int, b3: int, b4: int) -> bytes:
+    """The 6-byte frame ``b0 b1 b2 b3 b4 BCC`` (bytes already checked)."""
+    return bytes((b0, b1, b2, b3, b4, b0 ^ b1 ^ b2 ^ b3 ^ b4))
+
+
+# OpCode layout (seed 002 slide 9): bits 7-6 operation, 5-2 SCU address, 1-0 parameter.
+_OP_SHIFT = 6
+_SCU_SHIFT = 2
+_SCU_MASK = 0x0F
+_PARAM_MASK = 0x03
+
+
+def _join_opcode(op: int, scu: int, param: int) -> int:
+    return (op << _OP_SHIFT) | (scu << _SCU_SHIFT) | param
+
+
+def _split_opcode(opcode: int) -> tuple[int, int, int]:
+    return opcode >> _OP_SHIFT, (opcode >> _SCU_SHIFT) & _SCU_MASK, opcode & _PARAM_MASK
+
+
 def make_opcode(op: int, scu: int, param: int) -> int:
     """OpCode byte: bits 7-6 operation, 5-2 SCU address, 1-0 parameter (seed 002 slide 9).
 
@@ -150,13 +184,12 @@ def make_opcode(op: int, scu: int, param: int) -> int:
     op = int_in_range("operation", op, 0, 3, "2 bits")
     scu = int_in_range("SCU address", scu, 0, 15, "4 bits")
     param = int_in_range("parameter", param, 0, 3, "2 bits")
-    return (op << 6) | (scu << 2) | param
+    return _join_opcode(op, scu, param)
 
 
 def parse_opcode(opcode: int) -> tuple[int, int, int]:
     """OpCode byte -> ``(op, scu, param)``."""
-    opcode = _byte("OpCode", opcode)
-    return opcode >> 6, (opcode >> 2) & 0x0F, opcode & 0x03
+    return _split_opcode(_byte("OpCode", opcode))
 
 
 def encode_request(op: int, scu: int, param: int, d1: int = 0, d2: int = 0, d3: int = 0) -> bytes:
@@ -166,7 +199,7 @@ def encode_request(op: int, scu: int, param: int, d1: int = 0, d2: int = 0, d3: 
     d1 = _byte("D1", d1)
     d2 = _byte("D2", d2)
     d3 = _byte("D3", d3)
-    return bytes((SOF, opcode, d1, d2, d3, SOF ^ opcode ^ d1 ^ d2 ^ d3))
+    return _frame(SOF, opcode, d1, d2, d3)
 
 
 def _check_frame(frame: bytes | bytearray | memoryview) -> bytes:
@@ -175,6 +208,12 @@ def _check_frame(frame: bytes | bytearray | memoryview) -> bytes:
     if len(frame) != FRAME_LEN:
         raise FrameError(f"RS-232 frame must be {FRAME_LEN} bytes, got {len(frame)}: [{hexdump(frame)}]")
     return frame
+
+
+def _check_bcc(frame: bytes) -> None:
+    x = bcc(frame[:5])
+    if x != frame[5]:
+        raise FrameError(f"bad BCC: expected 0x{x:02X}, got 0x{frame[5]:02X}: [{hexdump(frame)}]")
 
 
 @dataclass(frozen=True, slots=True)
@@ -201,7 +240,7 @@ class Request:
     @property
     def opcode(self) -> int:
         """The OpCode byte."""
-        return (self.op << 6) | (self.scu << 2) | self.param
+        return _join_opcode(self.op, self.scu, self.param)
 
     def encode(self) -> bytes:
         """The 6-byte frame ``FF OP D1 D2 D3 BCC``."""
@@ -213,11 +252,8 @@ class Request:
         frame = _check_frame(frame)
         if frame[0] != SOF:
             raise FrameError(f"request must start with SOF 0xFF, got 0x{frame[0]:02X}: [{hexdump(frame)}]")
-        x = bcc(frame[:5])
-        if x != frame[5]:
-            raise FrameError(f"bad BCC: expected 0x{x:02X}, got 0x{frame[5]:02X}: [{hexdump(frame)}]")
-        opcode = frame[1]
-        return cls(opcode >> 6, (opcode >> 2) & 0x0F, opcode & 0x03, (frame[2], frame[3], frame[4]))
+        _check_bcc(frame)
+        return cls(*_split_opcode(frame[1]), (frame[2], frame[3], frame[4]))
 
 
 def status_response(request: bytes | bytearray | memoryview, status: int) -> bytes:
@@ -228,8 +264,7 @@ def status_response(request: bytes | bytearray | memoryview, status: int) -> byt
     request = _check_frame(request)
     if request[0] != SOF:
         raise FrameError(f"can only echo a request (first byte 0xFF), got [{hexdump(request)}]")
-    op, d1, d2, d3 = request[1], request[2], request[3], request[4]
-    return bytes((status, op, d1, d2, d3, status ^ op ^ d1 ^ d2 ^ d3))
+    return _frame(status, request[1], request[2], request[3], request[4])
 
 
 def data_response(v1: int, v2: int, v3: int, v4: int) -> bytes:
@@ -239,7 +274,7 @@ def data_response(v1: int, v2: int, v3: int, v4: int) -> bytes:
     v2 = _byte("V2", v2)
     v3 = _byte("V3", v3)
     v4 = _byte("V4", v4)
-    return bytes((MESSAGE_DATA, v1, v2, v3, v4, MESSAGE_DATA ^ v1 ^ v2 ^ v3 ^ v4))
+    return _frame(MESSAGE_DATA, v1, v2, v3, v4)
 
 
 _KIND = {MESSAGE_SUCCESS: "success", MESSAGE_INVREQ: "invreq", MESSAGE_DATA: "data"}
@@ -277,9 +312,7 @@ def decode_response(frame: bytes | bytearray | memoryview) -> Response:
         raise FrameError(
             f"unknown response first byte 0x{first:02X} (expected FA/FB/FC/FD): [{hexdump(frame)}]"
         )
-    x = bcc(frame[:5])
-    if x != frame[5]:
-        raise FrameError(f"bad BCC: expected 0x{x:02X}, got 0x{frame[5]:02X}: [{hexdump(frame)}]")
+    _check_bcc(frame)
     return Response(kind, frame, (frame[1], frame[2], frame[3], frame[4]))
 
 

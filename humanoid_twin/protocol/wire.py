@@ -21,6 +21,9 @@ __all__ = [
     "SCUS",
     "check_scu",
     "scu_error",
+    "NODES",
+    "node_error",
+    "node_name",
     "POS_LIMIT_DEG",
     "ControlType",
     "ErrorState",
@@ -51,20 +54,28 @@ N_SCU = 8                                        # Slaves (SCUs) 1..8
 SCUS: tuple[int, ...] = tuple(range(1, N_SCU + 1))
 
 
+NODES: tuple[int, ...] = (MASTER_ADDRESS, *SCUS)   # the CAN nodes: 0 the Master, 1..8 the Slaves
+
+
+def _address_error(value: Any, what: str, lo: int) -> str | None:
+    """``None`` if ``value`` is an int (not a bool) in ``lo``..:data:`N_SCU`, else the reason."""
+    if type(value) is int and lo <= value <= N_SCU:
+        return None
+    if isinstance(value, bool):
+        return f"{what} must be an integer {lo}..{N_SCU}, got {value!r}"
+    try:
+        v = operator.index(value)
+    except TypeError:
+        return f"{what} must be an integer {lo}..{N_SCU}, got {value!r}"
+    if not lo <= v <= N_SCU:
+        return f"{what} must be {lo}..{N_SCU}, got {v}"
+    return None
+
+
 def scu_error(scu: Any, what: str = "SCU address") -> str | None:
     """``None`` if ``scu`` is a Slave address 1..:data:`N_SCU` (an int, not a bool), else the
     reason in one readable line (the Master's ``usartProcessMsg`` range check, seed 000 table 3)."""
-    if type(scu) is int and 1 <= scu <= N_SCU:
-        return None
-    if isinstance(scu, bool):
-        return f"{what} must be an integer 1..{N_SCU}, got {scu!r}"
-    try:
-        v = operator.index(scu)
-    except TypeError:
-        return f"{what} must be an integer 1..{N_SCU}, got {scu!r}"
-    if not 1 <= v <= N_SCU:
-        return f"{what} must be 1..{N_SCU}, got {v}"
-    return None
+    return _address_error(scu, what, 1)
 
 
 def check_scu(scu: Any, what: str = "SCU address", error: type[Exception] = ValueError) -> int:
@@ -76,6 +87,18 @@ def check_scu(scu: Any, what: str = "SCU address", error: type[Exception] = Valu
     if reason is not None:
         raise error(reason)
     return operator.index(scu)
+
+
+def node_error(node: Any, what: str = "CAN node") -> str | None:
+    """``None`` if ``node`` is a CAN node address of :data:`NODES` (0 the Master, 1..:data:`N_SCU`
+    the Slaves; an int, not a bool), else the reason in one readable line."""
+    return _address_error(node, what, MASTER_ADDRESS)
+
+
+def node_name(node: int) -> str:
+    """The name a CAN node's controller has on the network: ``"master"`` for
+    :data:`MASTER_ADDRESS`, ``"slave<N>"`` for Slave N."""
+    return "master" if node == MASTER_ADDRESS else f"slave{node}"
 
 
 # --- positions (seed 000 table 16 limitPosition; seed 002 slide 10) --------------------------
@@ -94,6 +117,16 @@ class ControlType(IntEnum):
     LOCOMOTION_CONTROL = 1
     REACTION_CONTROL = 2
     BALANCE_CONTROL = 3
+
+    @property
+    def label(self) -> str:
+        """The short name users type (``run --control``, ``--law``): ``"none"``,
+        ``"locomotion"``, ``"reaction"`` or ``"balance"``."""
+        return _CONTROL_LABELS[self]
+
+
+_CONTROL_LABELS = {ControlType.NO_CONTROL: "none", ControlType.LOCOMOTION_CONTROL: "locomotion",
+                   ControlType.REACTION_CONTROL: "reaction", ControlType.BALANCE_CONTROL: "balance"}
 
 
 # --- CAN error states (seed 002 slides 25-27; the ERRSTATE byte of readcanstat) --------------
@@ -137,15 +170,17 @@ STATUS_FINISHED = (0x01, 0x02, 0x04)   # bits 0, 1, 2: the motion of servo 1, 2,
 
 
 # --- int8 on the wire (two's complement bytes: positions, velocities, KP) --------------------
-def int_in_range(name: str, value: Any, lo: int, hi: int, what: str) -> int:
-    """``value`` as a plain int in ``lo..hi`` (numpy integers accepted), else a readable
-    ``ValueError`` naming ``name`` and ``what`` it is (the codecs' one field check)."""
+def int_in_range(name: str, value: Any, lo: int, hi: int | None, what: str) -> int:
+    """``value`` as a plain int in ``lo..hi`` (``hi`` None: ``>= lo``; numpy integers accepted,
+    floats not), else a readable ``ValueError`` naming ``name`` and ``what`` it is: the codecs'
+    field check and the host toolbox's count check (``gate``, ``rate``, ``max_tries`` ...)."""
+    span = f"{lo}..{hi}" if hi is not None else f">= {lo}"
     try:
         v = operator.index(value)
     except TypeError:
-        raise ValueError(f"{name} must be an integer {lo}..{hi} ({what}), got {value!r}") from None
-    if not lo <= v <= hi:
-        raise ValueError(f"{name} must be {lo}..{hi} ({what}), got {v}")
+        raise ValueError(f"{name} must be an integer {span} ({what}), got {value!r}") from None
+    if v < lo or (hi is not None and v > hi):
+        raise ValueError(f"{name} must be {span} ({what}), got {v}")
     return v
 
 

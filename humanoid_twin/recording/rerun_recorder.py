@@ -115,7 +115,7 @@ class Recorder:
         period_us: int = PWM_PERIOD_US,
         app_id: str = "humanoid_twin",
         *,
-        chunk_s: float = 2.0,
+        chunk_s: float = 10.0,
         scus: Iterable[int] = SCUS,
         blueprint: bool = True,
         columns: Sequence[Column] = (),

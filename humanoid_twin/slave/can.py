@@ -26,7 +26,6 @@ from typing import TYPE_CHECKING, Any
 
 import can
 
-from humanoid_twin.bus.network import BUS_OFF
 from humanoid_twin.hardware import PWM_BUSY_US, PWM_PERIOD_US
 from humanoid_twin.protocol.canframes import (
     ACTUATION_IDS,
@@ -41,7 +40,7 @@ from humanoid_twin.protocol.canframes import (
     unpack_actuation1,
     unpack_actuation2,
 )
-from humanoid_twin.protocol.wire import ErrorState
+from humanoid_twin.protocol.wire import ErrorState, node_name
 from humanoid_twin.slave.database import Global
 
 if TYPE_CHECKING:
@@ -50,6 +49,7 @@ if TYPE_CHECKING:
 __all__ = ["ISR_LATENCY_US", "SlaveCan"]
 
 ISR_LATENCY_US = 20   # end of the received frame -> TXREQ of the answer (docs/firmware.md)
+_BUS_OFF = ErrorState.BUS_OFF.label   # a controller's ``state`` when bus-off
 
 
 class SlaveCan:
@@ -89,7 +89,7 @@ class SlaveCan:
         self.db = db
         self.phase_us = phase_us
         self.controller: Any = None
-        self.node_name = f"slave{address}"
+        self.node_name = node_name(address)
         self._sensor_ids = SENSOR_IDS[address]
         # the two actuation identifiers addressed to this board -> packet index: the destination
         # and operation check of lowISR in one dict lookup
@@ -138,9 +138,16 @@ class SlaveCan:
         if (now - self.phase_us) % PWM_PERIOD_US < PWM_BUSY_US:
             self.tx_silent += 1                    # PWM interference: no answer
             return
+        due = now + ISR_LATENCY_US
+        nxt = self.clock.next_due_us()
+        if nxt is None or nxt > due:
+            # nothing runs before the answer's TXREQ (no tick can change the packet, no frame
+            # can supersede it): request it for that instant now, without an event
+            self.sendCanMessage(index, due)
+            return
         self._tx_index = index
-        self._tx_due_us = now + ISR_LATENCY_US
-        self.clock.schedule(self._tx_due_us, self._isr_send_cb)
+        self._tx_due_us = due
+        self.clock.schedule(due, self._isr_send_cb)
 
     def _isr_send(self) -> None:
         if self.clock.now_us != self._tx_due_us:   # superseded by a later packet
@@ -195,20 +202,24 @@ class SlaveCan:
             ctl[1].kd = kd2
         return True
 
-    def sendCanMessage(self, index: int) -> None:
+    def sendCanMessage(self, index: int, at_us: int = -1) -> None:
         """``sendCanMessage`` (table 18): the sensor packet ``index`` (0: positions, velocities,
-        status; 1: currents, force sensors) to the Master."""
+        status; 1: currents, force sensors) to the Master; its TXREQ now, or at ``at_us`` when
+        nothing runs on the clock before then (``CanController.send_at``)."""
         self.tx_packets += 1
         controller = self.controller
         msg = self._tx_msgs[index] = controller.load_tx(
             self._tx_msgs[index], self._sensor_ids[index], self.payload[index])
-        controller.send(msg)
+        if at_us < 0:
+            controller.send(msg)
+        else:
+            controller.send_at(msg, at_us)
 
     def checkCan(self) -> bool:
         """``checkCan`` (table 18): if the controller is bus-off, recover it (``clear_status``).
         Returns True when a recovery was started."""
         c = self.controller
-        if c is not None and c.state == BUS_OFF and not getattr(c, "recovering", False):
+        if c is not None and c.state == _BUS_OFF and not getattr(c, "recovering", False):
             c.clear_status()
             self.bus_off_recoveries += 1
             self.bus_off_seen = True

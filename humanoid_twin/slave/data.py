@@ -17,7 +17,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 
-from humanoid_twin.hardware import FORCE_SENSOR_XY_MM, LINK_COM_MM, LINK_LENGTH_MM, LINK_MASS_KG
+from humanoid_twin.hardware import COP_MIN_LOAD, FORCE_SENSOR_XY_MM, LINK_COM_MM, LINK_LENGTH_MM, LINK_MASS_KG
 from humanoid_twin.slave.mymaths import coseno, seno
 
 __all__ = [
@@ -35,11 +35,6 @@ __all__ = [
 # Table 12 in tenths of a millimetre (integers; order FL, FR, RL, RR).
 SENSOR_X_TENTHS: tuple[int, ...] = tuple(round(10 * x) for x, _ in FORCE_SENSOR_XY_MM)
 SENSOR_Y_TENTHS: tuple[int, ...] = tuple(round(10 * y) for _, y in FORCE_SENSOR_XY_MM)
-
-# Smallest sum of the four 7-bit force values for which the CoP means something: 8 counts of
-# 7 bits = 16 counts of the 8-bit ADC = 3.2 N (hardware.FORCE_N_PER_COUNT), about 6 % of the
-# robot's weight. Below it the foot is taken as unloaded (in the air).
-COP_MIN_LOAD = 8
 
 # Table 13, as the mass centre of the two leg links seen from the ankle (foot as the base).
 # The lower link (M1) goes from the ankle to the knee, its CoM R = 47 mm below the knee, i.e.

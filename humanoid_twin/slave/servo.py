@@ -33,7 +33,7 @@ from collections.abc import Sequence
 from typing import Any
 
 from humanoid_twin.hardware import FORCE_CALIBRATION_VALUE, N_SERVOS, N_SPECIAL_SENSORS, POT_COUNTS_PER_DEG
-from humanoid_twin.protocol.wire import POS_LIMIT_DEG
+from humanoid_twin.protocol.wire import POS_LIMIT_DEG, ControlType
 from humanoid_twin.slave.data import divround
 from humanoid_twin.slave.database import Actuators, Control
 from humanoid_twin.slave.laws import (
@@ -72,11 +72,11 @@ __all__ = [
     "ServoControl",
 ]
 
-# Table 9
-NO_CONTROL = 0
-LOCOMOTION_CONTROL = 1
-REACTION_CONTROL = 2
-BALANCE_CONTROL = 3
+# Table 9 (protocol.wire.ControlType), as the plain ints the firmware compares
+NO_CONTROL = int(ControlType.NO_CONTROL)
+LOCOMOTION_CONTROL = int(ControlType.LOCOMOTION_CONTROL)
+REACTION_CONTROL = int(ControlType.REACTION_CONTROL)
+BALANCE_CONTROL = int(ControlType.BALANCE_CONTROL)
 
 VELOCITY_LIMIT_Q8 = 256      # applyVelocity limiter: 1 degree per tick (50 deg/s)
 # Additions to the manual's balance laws (docs/balance.md, "Interpretations"):
