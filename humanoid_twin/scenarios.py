@@ -31,6 +31,7 @@ from humanoid_twin.faults import FaultInjector, FaultSpec
 from humanoid_twin.host import drivers
 from humanoid_twin.host.motion import exe_traj, power_on, send_gains
 from humanoid_twin.host.planners import (
+    BALANCE_MOTIONS,
     LEG_SCUS,
     control_row,
     empty_plan,
@@ -126,6 +127,9 @@ class RunOptions:
     host_period_ms: float = 20.0
 
 
+_BALANCE_TYPES = (ControlType.REACTION_CONTROL, ControlType.BALANCE_CONTROL)
+
+
 @dataclass
 class Plan:
     """What a scenario asks of the robot: the planner's ``pos_apply``, ``k``, ``t`` (table 23)."""
@@ -133,18 +137,32 @@ class Plan:
     pos_apply: np.ndarray
     k: np.ndarray
     t: np.ndarray
+    # per motion, the leg board (SCU 1 or 2) that carries the robot, and whether it carries it
+    # alone (the other foot up); None: both feet down all along, the right leg leads (stand)
+    lead: tuple[int, ...] | None = None
+    single: tuple[bool, ...] | None = None
 
     def with_control(self, ctype: int, split: bool = False) -> Plan:
         """The same motions with every leg and hip board (SCU 1-4) on control type ``ctype``
         (and that type's default gains): ``--control``. ``split`` (the scenarios that keep both
         feet down, ``Scenario.double_support``: stand, flexao, inclinar): for REACTION and BALANCE
         the two legs get the leader/follower pair of :data:`STAND_GAINS` instead of the same law,
-        which would make them fight through the pelvis (docs/balance.md 2.2)."""
+        which would make them fight through the pelvis (docs/balance.md 2.2). A plan with
+        ``lead``/``single`` (levantar_perna) keeps its own division of labour instead: REACTION or
+        BALANCE (with the law's single-support gains, ``planners.GAINS``) on the support leg
+        where it carries the robot alone, every other board and motion as planned
+        (docs/balance.md 4 has what the other splits measured)."""
+        if split and self.single is not None and self.lead is not None and ctype in _BALANCE_TYPES:
+            k = np.array(self.k, dtype=float, copy=True)
+            for m, alone in enumerate(self.single):
+                if alone:
+                    k[self.lead[m] - 1, :, m] = control_row(ctype)
+            return Plan(self.pos_apply, k, self.t, self.lead, self.single)
         k = with_control(self.k, ctype)
-        if split and ctype in (ControlType.REACTION_CONTROL, ControlType.BALANCE_CONTROL):
+        if split and ctype in _BALANCE_TYPES:
             for scu, gains in STAND_GAINS.items():
                 k[scu - 1] = control_row(ctype, gains)[:, None, :]
-        return Plan(self.pos_apply, k, self.t)
+        return Plan(self.pos_apply, k, self.t, self.lead, self.single)
 
 
 Factory = Callable[[float | None, float | None, int], Plan]
@@ -241,7 +259,13 @@ def _inclinar(T: float | None, motion: float | None, perna: int) -> Plan:
 def _levantar_perna(T: float | None, motion: float | None, perna: int) -> Plan:
     """lift a leg: --perna 1 the right, 2 the left (table 22); --motion = the lifted knee's angle"""
     knee = DEFAULT_MOTION_DEG["levantar_perna"] if motion is None else motion
-    return Plan(*levantar_perna(DEFAULT_T_S if T is None else T, knee, perna))
+    pos, k, t = levantar_perna(DEFAULT_T_S if T is None else T, knee, perna)
+    if perna not in (1, 2):
+        return Plan(pos, k, t)
+    support = 2 if perna == 1 else 1            # the leg board that stays down
+    n = len(t)
+    single = tuple(m in BALANCE_MOTIONS for m in range(n))   # the other foot is up
+    return Plan(pos, k, t, lead=(support,) * n, single=single)
 
 
 SCENARIOS: tuple[str, ...] = tuple(REGISTRY)   # the CLI's choices, in registration order
@@ -325,7 +349,8 @@ def run(opts: RunOptions, on_progress: Callable[[float, float | None], None] | N
                 "from power-on): give at least that")
         the_plan = spec.plan(opts.T, opts.motion, opts.perna)
         if opts.control is not None:
-            the_plan = the_plan.with_control(CONTROL_CHOICES[opts.control], split=spec.double_support)
+            split = spec.double_support or the_plan.lead is not None
+            the_plan = the_plan.with_control(CONTROL_CHOICES[opts.control], split=split)
         motion_s = float(np.sum(the_plan.t)) if spec.moves else 0.0
         tilt_s = abs(opts.tilt) / TILT_RATE_DEG_S
         duration = opts.duration

@@ -39,8 +39,8 @@ def _phases(T: float | None) -> tuple[str, ...]:
     return (*MOTIONS[:len(_phase_edges(1, T))], "after")
 
 
-def one(args: tuple[int, int, tuple[tuple[str, str], ...], float | None]) -> dict[str, Any]:
-    perna, seed, laws, T = args
+def one(args: tuple[int, int, tuple[tuple[str, str], ...], float | None, str | None]) -> dict[str, Any]:
+    perna, seed, laws, T, control = args
     edges = _phase_edges(perna, T)
     PHASES = _phases(T)
     trace: list[tuple[float, float, str]] = []
@@ -59,7 +59,8 @@ def one(args: tuple[int, int, tuple[tuple[str, str], ...], float | None]) -> dic
 
         twin.every(20_000, sample)
 
-    s = run(RunOptions("levantar_perna", perna=perna, seed=seed, laws=laws, T=T, progress=False),
+    s = run(RunOptions("levantar_perna", perna=perna, seed=seed, laws=laws, T=T, control=control,
+                       progress=False),
             on_twin=on_twin)
     b = s["boot_s"]
     per_phase = [math.inf] * len(PHASES)
@@ -86,15 +87,17 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--jobs", type=int, default=2)
     ap.add_argument("--T", type=float, default=None)
     ap.add_argument("--law", action="append", default=[], help="TYPE=module:Class, as run --law")
+    ap.add_argument("--control", default=None, help="as run --control (none, locomotion, reaction, balance)")
     a = ap.parse_args(argv)
     laws = tuple(tuple(x.split("=", 1)) for x in a.law)
     pernas = [int(p) for p in a.pernas.split(",")]
-    jobs = [(p, s, laws, a.T) for p in pernas for s in range(a.first_seed, a.first_seed + a.seeds)]
+    jobs = [(p, s, laws, a.T, a.control) for p in pernas for s in range(a.first_seed, a.first_seed + a.seeds)]
     t0 = time.perf_counter()
     with mp.get_context("spawn").Pool(a.jobs) as pool:
         rows = pool.map(one, jobs, chunksize=1)
     wall = time.perf_counter() - t0
-    print(f"levantar_perna, {len(rows)} runs, laws {dict(laws) or 'built-in'}, T {a.T or 'default'}, "
+    print(f"levantar_perna, {len(rows)} runs, laws {dict(laws) or 'built-in'}, "
+          f"control {a.control or 'planned'}, T {a.T or 'default'}, "
           f"{wall:.0f} s on {a.jobs} processes; margins in mm, t in s after the boot "
           f"(motion ends: {', '.join(f'{e:g}' for e in _phase_edges(1, a.T))})")
     PHASES = _phases(a.T)

@@ -125,6 +125,25 @@ def test_the_control_override_keeps_the_leader_follower_split_and_holds_20_deg(c
     assert stood(s, 20.0), s
 
 
+def test_levantar_perna_control_override_keeps_the_support_swing_split_and_stands(monkeypatch):
+    """``levantar_perna --control reaction``: the law goes where the plan balances (the support leg
+    in single support), the rest of the plan stays; the same law on every leg and hip board (the
+    override without the split) falls (docs/balance.md 4)."""
+    base = scenarios.plan("levantar_perna", perna=2)
+    over = base.with_control(ControlType.REACTION_CONTROL, split=True)
+    changed = {(row, m) for row in range(8) for m in range(len(base.t))
+               if not np.array_equal(base.k[row, :, m], over.k[row, :, m])}
+    assert changed == {(0, m) for m in BALANCE_MOTIONS}          # SCU 1, the right (support) leg
+    assert np.all(over.k[0, :, HOLD, 3] == int(ControlType.REACTION_CONTROL))
+    s = run(RunOptions("levantar_perna", perna=2, control="reaction", progress=False))
+    check_summary(s)
+    assert stood(s, 8.0), s
+    raw = scenarios.Plan.with_control
+    monkeypatch.setattr(scenarios.Plan, "with_control", lambda self, ctype, split=False: raw(self, ctype))
+    same = run(RunOptions("levantar_perna", perna=2, control="reaction", progress=False))
+    assert same["fell"], same
+
+
 # ---------------------------------------------------------------------------------------------
 # one-leg stance: levantar_perna with balance on the support leg
 

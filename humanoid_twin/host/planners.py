@@ -93,7 +93,8 @@ MAX_PERIOD_S = 255 * TICK_S          # the movement period travels as one byte o
 # the support foot onto its edge in 3 runs of 4 (tests/test_balance.py). KP 2, KD 0 rocks the
 # robot on the foot edges. Both legs on the same law in double support fight each other
 # (docs/balance.md): a stand uses a leader/follower pair (scenarios.STAND_GAINS);
-# ``--control balance|reaction`` puts these same gains on both legs and reproduces that instability.
+# ``--control balance|reaction`` keeps that split (scenarios.Plan.with_control): on levantar_perna
+# it puts the law, with these gains, on the support leg in single support only.
 GAINS: dict[ControlType, tuple[tuple[int, int, int], ...]] = {
     ControlType.NO_CONTROL: ((0, 0, 0),) * 3,
     ControlType.LOCOMOTION_CONTROL: ((1, 0, 0),) * 3,
