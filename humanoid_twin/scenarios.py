@@ -289,13 +289,21 @@ def run(opts: RunOptions, on_progress: Callable[[float, float | None], None] | N
     def stopped() -> bool:
         return sup.mode in (SAFE, ESTOP)
 
+    the_plan = spec.plan(opts.T, opts.motion, opts.perna)
+    if opts.control is not None:
+        the_plan = the_plan.with_control(CONTROL_CHOICES[opts.control], split=spec.double_support)
+    motion_s = float(np.sum(the_plan.t)) if spec.moves else 0.0
+    tilt_s = abs(opts.tilt) / TILT_RATE_DEG_S
     recorder = canlog = None
     wall0 = time.perf_counter()
     try:
         if opts.out is not None:
-            from humanoid_twin.recording import Recorder
+            from humanoid_twin.recording import Recorder, compact_for
 
-            recorder = Recorder(opts.out, twin)
+            # the run's length, bounded from above before the boot (BOOT_TIMEOUT_S >= the boot)
+            expected_s = opts.duration if opts.duration is not None else (
+                BOOT_TIMEOUT_S + max(motion_s, tilt_s) + SETTLE_S)
+            recorder = Recorder(opts.out, twin, compact=compact_for(expected_s))
         if opts.can_log is not None:
             from humanoid_twin.recording import CanLog
 
@@ -323,11 +331,6 @@ def run(opts: RunOptions, on_progress: Callable[[float, float | None], None] | N
             raise ScenarioInputError(
                 f"--duration {opts.duration:g} is shorter than the boot ({boot_s:.3f} simulated seconds "
                 "from power-on): give at least that")
-        the_plan = spec.plan(opts.T, opts.motion, opts.perna)
-        if opts.control is not None:
-            the_plan = the_plan.with_control(CONTROL_CHOICES[opts.control], split=spec.double_support)
-        motion_s = float(np.sum(the_plan.t)) if spec.moves else 0.0
-        tilt_s = abs(opts.tilt) / TILT_RATE_DEG_S
         duration = opts.duration
         if duration is None:
             duration = boot_s + max(motion_s, tilt_s) + SETTLE_S
