@@ -289,14 +289,14 @@ def run(opts: RunOptions, on_progress: Callable[[float, float | None], None] | N
     def stopped() -> bool:
         return sup.mode in (SAFE, ESTOP)
 
-    the_plan = spec.plan(opts.T, opts.motion, opts.perna)
-    if opts.control is not None:
-        the_plan = the_plan.with_control(CONTROL_CHOICES[opts.control], split=spec.double_support)
-    motion_s = float(np.sum(the_plan.t)) if spec.moves else 0.0
-    tilt_s = abs(opts.tilt) / TILT_RATE_DEG_S
     recorder = canlog = None
     wall0 = time.perf_counter()
     try:
+        the_plan = spec.plan(opts.T, opts.motion, opts.perna)
+        if opts.control is not None:
+            the_plan = the_plan.with_control(CONTROL_CHOICES[opts.control], split=spec.double_support)
+        motion_s = float(np.sum(the_plan.t)) if spec.moves else 0.0
+        tilt_s = abs(opts.tilt) / TILT_RATE_DEG_S
         if opts.out is not None:
             from humanoid_twin.recording import Recorder, compact_for
 
