@@ -40,6 +40,7 @@ from humanoid_twin.host import (
     sleep,
 )
 from humanoid_twin.host.drivers import STATUS_CALIB, STATUS_PWM, ErrorCode
+from humanoid_twin.host.planners import HOLD
 from humanoid_twin.host.trajectory import cubic
 from humanoid_twin.protocol.rs232 import TEST_MESSAGE, bcc
 from humanoid_twin.twin import Twin
@@ -280,12 +281,13 @@ def test_levantar_perna_through_exe_traj_lifts_the_right_foot_and_stands(booted_
     t0 = now(H)
     d = exe_traj(H, t, pos, 0.5, k)
     check_traj(d, 5)                                        # legs, hips and the torso (SCU 5)
-    assert now(H) - t0 == pytest.approx(float(np.sum(t)) + 0.5, abs=0.1)   # the return takes 2 T
+    assert now(H) - t0 == pytest.approx(float(np.sum(t)) + 0.5, abs=0.1)   # shift 2 T, return 3 T
     # hold (motion 3): the right knee measured at ~50 degrees, the right foot off the floor
-    hold = (d.tt > 2.7) & (d.tt < 3.0)
+    h0 = float(np.sum(t[:HOLD]))
+    hold = (d.tt > h0 + 0.7) & (d.tt < h0 + 1.0)
     assert np.all(np.abs(d.position[0, 2, hold] - 50) <= 3)
     times = np.array([x.t_s for x in log]) - t0
-    in_hold = [x for x, ts in zip(log, times, strict=True) if 2.7 < ts < 3.0]
+    in_hold = [x for x, ts in zip(log, times, strict=True) if h0 + 0.7 < ts < h0 + 1.0]
     assert all(x.pad_forces_n["r_foot"].sum() < 0.5 for x in in_hold)
     assert all(x.pad_forces_n["l_foot"].sum() > 40 for x in in_hold)
     # both feet down again, standing, back to vertical

@@ -41,6 +41,7 @@ from humanoid_twin.protocol.wire import ControlType
 
 R_LEG, L_LEG, R_HIP, L_HIP = 0, 1, 2, 3
 LOCO, BAL = int(ControlType.LOCOMOTION_CONTROL), int(ControlType.BALANCE_CONTROL)
+REACT, OPEN = int(ControlType.REACTION_CONTROL), int(ControlType.NO_CONTROL)
 
 
 def leg(pos: np.ndarray, side: int, m: int) -> dict[str, float]:
@@ -71,8 +72,8 @@ def ankle_to_hip_xz(j: dict[str, float]) -> tuple[float, float]:
 
 @pytest.mark.parametrize(
     "plan, n_motions",
-    [(flexao(1.0, 20), 1), (inclinar(1.5, -10), 1), (levantar_perna(1.0, 40, 1), 5),
-     (levantar_perna(1.0, 40, 2), 5), (levantar_perna(1.0, 40, 0), 3), (levantar_perna(1.0, 40, 7), 3)],
+    [(flexao(1.0, 20), 1), (inclinar(1.5, -10), 1), (levantar_perna(1.0, 40, 1), 6),
+     (levantar_perna(1.0, 40, 2), 6), (levantar_perna(1.0, 40, 0), 3), (levantar_perna(1.0, 40, 7), 3)],
 )
 def test_planner_shapes_are_those_of_table_23(plan, n_motions):
     pos, k, t = plan
@@ -145,7 +146,8 @@ def test_inclinar_moves_foot_lateral_by_motion_and_hip_roll_opposite(motion):
 def test_levantar_perna_shifts_then_lifts_one_leg_with_balance_on_the_support_leg(perna, lifted, support):
     motion, shift = 50.0, 12.0
     pos, k, t = levantar_perna(1.5, motion, perna, shift=shift)
-    assert np.all(t[:4] == 1.5) and t[4] == 3.0          # the return takes twice as long
+    # the shift takes 2 T, the return 3 T, the other motions T (docs/balance.md 4)
+    assert t.tolist() == [3.0, 1.5, 1.5, 1.5, 4.5, 1.5]
     lean = shift if perna == 1 else -shift      # + = toward the left leg
     other = 1 - lifted
     for m in range(4):
@@ -161,19 +163,29 @@ def test_levantar_perna_shifts_then_lifts_one_leg_with_balance_on_the_support_le
         assert j["knee"] == motion
         assert j["hip_pitch"] + j["knee"] + j["ankle_pitch"] == 0
         assert leg(pos, other, m)["knee"] == 0
-    # lower = the shift pose; return = vertical
+    # lower = the shift pose; return and rest = vertical
     assert np.array_equal(pos[:, :, 3], pos[:, :, 0])
-    assert np.all(pos[:, :, 4] == 0)
+    assert np.all(pos[:, :, 4:] == 0)
     # the upper torso leans toward the support leg (torso roll about +x: negative = top to the left)
     assert np.all(pos[4, 0, :4] == (-20.0 if perna == 1 else 20.0)) and np.all(pos[4, 1:, :] == 0)
-    assert pos[4, 0, 4] == 0
+    assert np.all(pos[4, 0, 4:] == 0)
     # control: balance on the support leg's board during the hold and the lower (single support);
-    # locomotion on the legs, hips and body otherwise
-    for m in range(5):
+    # the lifted leg's foot lateral joint compliant (REACTION, negative KP) in the lower and the
+    # return; open loop on the legs and hips in the rest; locomotion otherwise
+    lifted_row = R_LEG if lifted == 0 else L_LEG
+    for m in range(6):
         for row in (R_LEG, L_LEG, R_HIP, L_HIP, 4):
-            want = BAL if (row == support and m in (2, 3)) else LOCO
-            assert np.all(k[row, :, m, 3] == want), (row, m)
+            for servo in range(3):
+                want = LOCO
+                if row == support and m in (2, 3):
+                    want = BAL
+                elif m == 5 and row != 4:
+                    want = OPEN
+                elif row == lifted_row and servo == ANKLE_ROLL and m in (3, 4):
+                    want = REACT
+                assert k[row, servo, m, 3] == want, (row, servo, m)
     assert np.all(k[support, :, 2, :3] == np.asarray(GAINS[ControlType.BALANCE_CONTROL]))
+    assert k[lifted_row, ANKLE_ROLL, 3, :3].tolist() == [0, 256 - 8, 2]     # KP -8 as a signed byte, KD 2
 
 
 @pytest.mark.parametrize("perna", [0, 3, -1, 1.5, None, "both"])

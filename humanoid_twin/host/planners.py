@@ -114,16 +114,34 @@ SHIFT_DEG = 18.0
 TORSO_LEAN_DEG = 20.0
 BODY = 4                  # row of SCU 5 (body): servo 1 torso roll, 2 torso pitch, 3 bench servo
 TORSO_ROLL = 0
-HOLD = 2                  # levantar_perna's motion index of the hold (single support)
-LOWER = 3                 # ... of the lower (single support until the foot touches)
-RETURN = 4                # ... of the return to the vertical posture
-# levantar_perna's balance (docs/balance.md 4, issue 12): BALANCE on the support leg in the hold
-# *and* the lower (the foot is still up), and the return to the vertical posture over
-# RETURN_PERIODS x T (the weight moves back onto both feet at half the speed). Measured (seeds 0-9,
-# perna 1 and 2, T 1 s, knee 40 deg): smallest CoP margin 6.8 mm (13 runs of 20 >= 10 mm), against
-# 0.9 mm (3 of 20 >= 10 mm) with BALANCE in the hold only and a return in T.
+SHIFT = 0                 # levantar_perna's motion indices: the weight shift (double support)
+LIFT = 1                  # ... the lift (the foot leaves the floor)
+HOLD = 2                  # ... the hold (single support)
+LOWER = 3                 # ... the lower (single support until the foot touches)
+RETURN = 4                # ... the return to the vertical posture
+REST = 5                  # ... the rest: the vertical posture again, open loop
+# levantar_perna's balance (docs/balance.md 4, issue 12). Measured over seeds 0-9, perna 1 and 2
+# (T 1 s, knee 40 deg; scripts/levantar_margins.py), each addition against the plan without it:
+# - BALANCE on the support leg in the hold *and* the lower (the foot is still up);
+# - the weight shift over SHIFT_PERIODS x T: the lift starts once the legs' PIDs have caught up
+#   with the lean (in T they lag ~3 deg and the lifting foot bounces on its inner edge);
+# - the foot lateral joint of the leg that comes down turns compliant (REACTION with a negative
+#   gain, LANDING_GAINS: it turns the foot to bring its own CoP to the foot centre, as the stand's
+#   follower does in pitch) during the lower and the return: the foot lands and stays flat
+#   instead of rocking the robot onto its inner edge while the support leg hands the weight over;
+# - the return over RETURN_PERIODS x T;
+# - a last motion REST (T) at the vertical posture with NO_CONTROL on the leg and hip boards: the
+#   servos get the plan's positions again, the PIDs' integral corrections from single support are
+#   dropped, and the feet sit flat as after the boot (with LOCOMOTION there, whole-degree
+#   leftovers keep the feet on their inner edges; a compliant roll left on rocks the robot
+#   fore-aft).
+# Smallest CoP margin over the 20 runs: 10.2 mm (all 20 >= 10 mm), against 6.8 mm (13 of 20) with
+# BALANCE in hold + lower and a return over 2 T alone.
 BALANCE_MOTIONS = (HOLD, LOWER)
-RETURN_PERIODS = 2
+LANDING_MOTIONS = (LOWER, RETURN)
+LANDING_GAINS = ((0, -8, 2), (0, 0, 0), (0, 0, 0))     # foot lateral: KP -8, KD 2 (gain -2)
+SHIFT_PERIODS = 2
+RETURN_PERIODS = 3
 
 
 def _period(T: Any) -> float:
@@ -253,22 +271,27 @@ def levantar_perna(
     knee is at ``motion`` degrees (0..90). ``perna`` 1 = right leg, 2 = left leg, any other value =
     both legs (the manual's rule).
 
-    One leg, 5 motions of ``T`` seconds each:
+    One leg, 6 motions (``T`` seconds each unless said):
 
-    1. shift: both legs lean ``shift`` degrees toward the support leg (as ``inclinar``: ankle
-       roll ``+-shift``, hip roll opposite) and the upper torso leans ``torso`` degrees the same
-       way (torso roll, SCU 5 servo 1: ``-torso`` for the left support leg), putting the mass
-       centre over the support foot and the upper body's load over the support hip;
+    1. shift (:data:`SHIFT_PERIODS` x ``T``): both legs lean ``shift`` degrees toward the support
+       leg (as ``inclinar``: ankle roll ``+-shift``, hip roll opposite) and the upper torso leans
+       ``torso`` degrees the same way (torso roll, SCU 5 servo 1: ``-torso`` for the left support
+       leg), putting the mass centre over the support foot and the upper body's load over the
+       support hip;
     2. lift: the raised leg flexes: hip pitch ``-motion/2``, knee ``motion``, ankle pitch
        ``-motion/2`` (foot parallel to the floor, straight under the hip, raised by
        ``2 x 95 mm x (1 - cos(motion/2))``);
     3. hold: the same pose for another ``T``;
     4. lower: back to the shift pose;
-    5. return: vertical posture, in :data:`RETURN_PERIODS` x ``T`` (at most 5.1 s, one byte of ticks).
+    5. return: vertical posture, in :data:`RETURN_PERIODS` x ``T``;
+    6. rest: the vertical posture, open loop (NO_CONTROL on SCUs 1-4).
 
-    Control: LOCOMOTION_CONTROL on SCUs 1-5, except the support leg's board (foot lateral, foot
-    front, knee), which runs BALANCE_CONTROL during the hold and the lower (single support: the
-    other foot is up, so the support foot's CoP is the robot's; docs/balance.md).
+    (A period is at most 5.1 s, one byte of 20 ms ticks.) Control: LOCOMOTION_CONTROL on SCUs 1-5,
+    except the support leg's board (foot lateral, foot front, knee), which runs BALANCE_CONTROL
+    during the hold and the lower (single support: the other foot is up, so the support foot's
+    CoP is the robot's), the foot lateral joint of the lifted leg, which complies with the floor
+    during the lower and the return (REACTION_CONTROL, :data:`LANDING_GAINS`), and the rest
+    (NO_CONTROL on the legs and hips). docs/balance.md section 4 has the measurements.
 
     Both legs: 3 motions (both legs flex as in step 2, hold, return), LOCOMOTION_CONTROL on the
     legs and hips.
@@ -282,20 +305,27 @@ def levantar_perna(
     if perna in (1, 2) and not isinstance(perna, bool):
         lifted = 0 if perna == 1 else 1          # side index: 0 right, 1 left
         support_row = L_LEG if lifted == 0 else R_LEG
+        lifted_row = R_LEG if lifted == 0 else L_LEG
         sign = 1.0 if lifted == 0 else -1.0      # + = toward the left leg
-        pos, k, t = empty_plan(5)
-        for m in (0, 1, 2, 3):
+        pos, k, t = empty_plan(6)
+        for m in (SHIFT, LIFT, HOLD, LOWER):
             for side in (0, 1):
-                extra = flex if (side == lifted and m in (1, 2)) else {}
+                extra = flex if (side == lifted and m in (LIFT, HOLD)) else {}
                 leg_pose(pos, m, side, hip_roll=-sign * s, ankle_roll=sign * s, **extra)
             pos[BODY, TORSO_ROLL, m] = -sign * tr   # roll about +x: negative leans the top left
-        for m in range(5):
+        for m in range(6):
             for row in (*legs, BODY):
                 ctype = ControlType.LOCOMOTION_CONTROL
                 if row == support_row and m in BALANCE_MOTIONS:
                     ctype = ControlType.BALANCE_CONTROL
+                elif m == REST and row != BODY:
+                    ctype = ControlType.NO_CONTROL
                 _set_k(k, row, m, ctype)
+        landing = control_row(ControlType.REACTION_CONTROL, LANDING_GAINS)[ANKLE_ROLL]
+        for m in LANDING_MOTIONS:
+            k[lifted_row, ANKLE_ROLL, m] = landing
         t[:] = T
+        t[SHIFT] = min(SHIFT_PERIODS * T, MAX_PERIOD_S)
         t[RETURN] = min(RETURN_PERIODS * T, MAX_PERIOD_S)
         return pos, k, t
     pos, k, t = empty_plan(3)
