@@ -38,6 +38,8 @@ SERVO_JOINTS: dict[int, tuple[str, str, str]] = {
 }
 # Boards that carry a force-sensing foot (SPECIAL sensors = 4 force sensors).
 FOOT_OF_SCU: dict[int, str] = {1: "r_foot", 2: "l_foot"}
+# The leg and hip boards (right leg, left leg, right hip, left hip): the legs the twin moves.
+LEG_SCUS: tuple[int, ...] = (1, 2, 3, 4)
 
 # --- PWM actuation (servoActuation, PIC2) ----------------------------------------------------
 PWM_PERIOD_US = 20_000          # one tick of the Slave main loop

@@ -316,10 +316,19 @@ def run(opts: RunOptions, on_progress: Callable[[float, float | None], None] | N
     recorder = canlog = None
     wall0 = time.perf_counter()
     try:
+        the_plan = spec.plan(opts.T, opts.motion, opts.perna)
+        if opts.control is not None:
+            split = spec.double_support or the_plan.lead is not None
+            the_plan = the_plan.with_control(CONTROL_CHOICES[opts.control], split=split)
+        motion_s = float(np.sum(the_plan.t)) if spec.moves else 0.0
+        tilt_s = abs(opts.tilt) / TILT_RATE_DEG_S
         if opts.out is not None:
-            from humanoid_twin.recording import Recorder
+            from humanoid_twin.recording import Recorder, compact_for
 
-            recorder = Recorder(opts.out, twin)
+            # the run's length, bounded from above before the boot (BOOT_TIMEOUT_S >= the boot)
+            expected_s = opts.duration if opts.duration is not None else (
+                BOOT_TIMEOUT_S + max(motion_s, tilt_s) + SETTLE_S)
+            recorder = Recorder(opts.out, twin, compact=compact_for(expected_s))
         if opts.can_log is not None:
             from humanoid_twin.recording import CanLog
 
@@ -347,12 +356,6 @@ def run(opts: RunOptions, on_progress: Callable[[float, float | None], None] | N
             raise ScenarioInputError(
                 f"--duration {opts.duration:g} is shorter than the boot ({boot_s:.3f} simulated seconds "
                 "from power-on): give at least that")
-        the_plan = spec.plan(opts.T, opts.motion, opts.perna)
-        if opts.control is not None:
-            split = spec.double_support or the_plan.lead is not None
-            the_plan = the_plan.with_control(CONTROL_CHOICES[opts.control], split=split)
-        motion_s = float(np.sum(the_plan.t)) if spec.moves else 0.0
-        tilt_s = abs(opts.tilt) / TILT_RATE_DEG_S
         duration = opts.duration
         if duration is None:
             duration = boot_s + max(motion_s, tilt_s) + SETTLE_S

@@ -159,3 +159,17 @@ def test_memory_stays_flat_over_a_long_recording(tmp_path):
     assert peak - base < 3.0, (base, peak)
     verify_rrd(path)
     assert rec.samples == 3001
+
+
+def test_a_short_run_keeps_the_footer_a_long_or_open_one_is_compacted(tmp_path):
+    """`run` decides before the boot: a run of at most SHORT_RECORDING_S simulated seconds is
+    written with rerun's own footer (no rewrite at close), a longer or open-ended one streams
+    without it and is compacted. Either way the file verifies."""
+    from humanoid_twin.recording import SHORT_RECORDING_S, compact_for
+    from humanoid_twin.scenarios import RunOptions, run
+
+    assert not compact_for(30.0) and not compact_for(SHORT_RECORDING_S)
+    assert compact_for(SHORT_RECORDING_S + 1) and compact_for(None)
+    path = tmp_path / "short.rrd"
+    run(RunOptions(scenario="stand", duration=3.0, out=path, progress=False))
+    verify_rrd(path)

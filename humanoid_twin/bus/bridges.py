@@ -46,6 +46,7 @@ import tty
 from collections.abc import Callable
 
 from humanoid_twin.bus.serial_link import SerialLink
+from humanoid_twin.clock import US_PER_S
 
 _CHUNK = 4096
 DEFAULT_MAX_PENDING_S = 1.0
@@ -402,7 +403,7 @@ class TcpBridge(_Bridge):
                 if not data:
                     if self.link.host_pending() or self._out:
                         self._eof = True       # half-close: answer what it sent, then close
-                        pending_s = self.link.host_out_waiting() * self.link.byte_time_us / 1e6
+                        pending_s = self.link.host_out_waiting() * self.link.byte_time_us / US_PER_S
                         self._linger_until = time.monotonic() + pending_s + HALF_CLOSE_GRACE_S
                     else:
                         self._drop_client("closed the connection")

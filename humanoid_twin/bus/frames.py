@@ -22,6 +22,8 @@ from __future__ import annotations
 import re
 from functools import lru_cache
 
+from humanoid_twin.protocol.canframes import STD_ID_MAX
+
 CRC15_POLY = 0x4599
 # bits after the stuffed region: CRC delimiter, ACK slot, ACK delimiter, EOF(7), IFS(3)
 TRAILER_BITS = 13
@@ -45,7 +47,7 @@ def crc15(bits: list[int]) -> int:
 
 def unstuffed_bits(arbitration_id: int, data: bytes) -> list[int]:
     """The bits SOF..CRC of a standard data frame, before stuffing."""
-    if not 0 <= arbitration_id <= 0x7FF:
+    if not 0 <= arbitration_id <= STD_ID_MAX:
         raise ValueError(f"standard CAN ID must be 0..0x7FF, got {arbitration_id:#x}")
     n = len(data)
     if n > 8:
@@ -100,7 +102,7 @@ _RUNS = re.compile(r"0+|1+")
 def _frame_bits_cached(arbitration_id: int, data: bytes) -> int:
     # Same result as len(unstuffed_bits) + count_stuff_bits + TRAILER_BITS (tested), ~5x faster:
     # the CRC byte-wise from a table, the stuff bits counted per run of equal bits.
-    if not 0 <= arbitration_id <= 0x7FF:
+    if not 0 <= arbitration_id <= STD_ID_MAX:
         raise ValueError(f"standard CAN ID must be 0..0x7FF, got {arbitration_id:#x}")
     n = len(data)
     if n > 8:

@@ -50,6 +50,7 @@ from humanoid_twin.bus.frames import (
 )
 from humanoid_twin.bus.twin_bus import TwinBus, get_medium, release_medium
 from humanoid_twin.clock import US_PER_S, Clock
+from humanoid_twin.protocol.canframes import STD_ID_MAX
 
 TWIN_INTERFACE = "humanoid_twin"
 PIC_TX_BUFFERS = 3              # PIC18F258: TXB0..TXB2 (seed 002 slide 21)
@@ -80,7 +81,7 @@ class CanController:
         "frames_sent", "tx_refused", "tx_aborted", "tx_errors", "rx_errors",
         "bus_off_count", "recoveries",
         "_net", "_on_rx", "_tx_buffers", "_n_pending", "_off", "_suspend_until",
-        "_rec_count", "_rec_mark", "_filt", "_external",
+        "_rec_count", "_rec_mark", "_filt", "_external", "_loaded", "_loaded_bits",
     )
 
     def __init__(self, network: CanNetwork, name: str, on_rx: Callable[[can.Message], None] | None,
@@ -111,6 +112,8 @@ class CanController:
         self._rec_mark = 0
         self._filt: Filters | None = None
         self._external = external
+        self._loaded: can.Message | None = None   # the message load_tx built, checked, until sent
+        self._loaded_bits = 0
 
     def __repr__(self) -> str:
         return (f"CanController({self.name!r}, {self.state}, tec={self.tec}, rec={self.rec}, "
@@ -164,14 +167,26 @@ class CanController:
     def load_tx(self, msg: can.Message | None, arbitration_id: int, payload: bytes) -> can.Message:
         """The message to hand to :meth:`send`: ``msg`` reloaded with ``payload`` (like loading
         the PIC's TXBn registers) when this controller holds none of the node's frames any more,
-        else a new message (a pending frame, or one on the wire while bus-off, must not change)."""
+        else a new message (a pending frame, or one on the wire while bus-off, must not change).
+        The frame is checked (``CanError``) and its bit length computed here, once: hand it to
+        :meth:`send` unchanged."""
+        if type(payload) is not bytes:
+            payload = bytes(payload)
+        if not 0 <= arbitration_id <= STD_ID_MAX:
+            raise CanError(f"{self.name}: standard CAN ID must be 0..0x7FF, got {arbitration_id:#x}")
+        if len(payload) > 8:
+            raise CanError(f"{self.name}: a frame carries 0..8 data bytes, got {len(payload)}")
         if msg is None or self._n_pending or self.state == BUS_OFF:
-            return can.Message(arbitration_id=arbitration_id, data=payload, is_extended_id=False, is_rx=False)
-        msg.data[:] = payload
-        msg.dlc = len(payload)
-        msg.timestamp = 0.0
-        msg.channel = None
-        msg.is_rx = False
+            msg = can.Message(arbitration_id=arbitration_id, data=payload, is_extended_id=False, is_rx=False)
+        else:
+            msg.data[:] = payload
+            msg.dlc = len(payload)
+            msg.timestamp = 0.0
+            msg.channel = None
+            msg.is_rx = False
+        # checked and measured here, once: send() of this message skips both
+        self._loaded = msg
+        self._loaded_bits = _frame_bits_cached(arbitration_id, payload)
         return msg
 
     @property
@@ -400,19 +415,12 @@ class CanNetwork(ErrorConfinement, ForeignPath):
         if ctrl._off or ctrl._n_pending >= ctrl._tx_buffers:
             ctrl.tx_refused += 1
             return False
-        data = msg.data
         arb = msg.arbitration_id
-        if msg.is_extended_id or msg.is_remote_frame or msg.is_error_frame or msg.is_fd:
-            raise CanError(
-                f"{ctrl.name}: only standard 11-bit data frames are sent (seed 002 slide 24); "
-                f"build the message with can.Message(..., is_extended_id=False), got {msg!r}")
-        if not 0 <= arb <= 0x7FF:
-            raise CanError(f"{ctrl.name}: standard CAN ID must be 0..0x7FF, got {arb:#x}")
-        n = len(data)
-        if n > 8 or msg.dlc != n:
-            raise CanError(f"{ctrl.name}: a frame carries 0..8 data bytes with dlc == len(data), "
-                           f"got dlc={msg.dlc}, {n} bytes")
-        bits = _frame_bits_cached(arb, bytes(data))
+        if msg is ctrl._loaded:          # built by load_tx: already checked, its length known
+            ctrl._loaded = None
+            bits = ctrl._loaded_bits
+        else:
+            bits = self._checked_bits(ctrl, msg)
         self._seq = seq = self._seq + 1
         clock = self.clock
         now = clock.now_us if at < 0 else at
@@ -427,6 +435,23 @@ class CanNetwork(ErrorConfinement, ForeignPath):
             self._start = start
             clock.schedule_fast(start + 1, self._decide_cb)
         return True
+
+    @staticmethod
+    def _checked_bits(ctrl: CanController, msg: can.Message) -> int:
+        """The frame's bit length, after checking it is one the robot's PIC can send."""
+        arb = msg.arbitration_id
+        if msg.is_extended_id or msg.is_remote_frame or msg.is_error_frame or msg.is_fd:
+            raise CanError(
+                f"{ctrl.name}: only standard 11-bit data frames are sent (seed 002 slide 24); "
+                f"build the message with can.Message(..., is_extended_id=False), got {msg!r}")
+        if not 0 <= arb <= STD_ID_MAX:
+            raise CanError(f"{ctrl.name}: standard CAN ID must be 0..0x7FF, got {arb:#x}")
+        data = msg.data
+        n = len(data)
+        if n > 8 or msg.dlc != n:
+            raise CanError(f"{ctrl.name}: a frame carries 0..8 data bytes with dlc == len(data), "
+                           f"got dlc={msg.dlc}, {n} bytes")
+        return _frame_bits_cached(arb, bytes(data))
 
     def external_send(self, bus: TwinBus, msg: can.Message) -> None:
         """A frame sent on this channel by a python-can bus that is not a node (a tool)."""

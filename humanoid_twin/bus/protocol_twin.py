@@ -215,9 +215,8 @@ class Serial(SerialBase):
     def flush(self) -> None:
         """Run the twin until every written byte has reached the device."""
         link = self._check_settings()
-        q = link._to_dev.queue
-        if q and self._advance is not None:
-            self._advance(q[-1][0])
+        if link.host_out_waiting() and self._advance is not None:
+            self._advance(link.host_out_done_us())
 
     def reset_input_buffer(self) -> None:
         """Discard the bytes already received."""

@@ -33,7 +33,7 @@ from typing import Any
 import numpy as np
 
 from humanoid_twin.clock import US_PER_S
-from humanoid_twin.hardware import N_SERVOS, PWM_PERIOD_US
+from humanoid_twin.hardware import LEG_SCUS, N_SERVOS, PWM_PERIOD_US
 from humanoid_twin.protocol.wire import N_SCU, ControlType
 
 __all__ = [
@@ -66,7 +66,6 @@ __all__ = [
 R_LEG, L_LEG, R_HIP, L_HIP = 0, 1, 2, 3
 ANKLE_ROLL, ANKLE_PITCH, KNEE = 0, 1, 2
 HIP_ROLL, HIP_PITCH, HIP_YAW = 0, 1, 2
-LEG_SCUS: tuple[int, ...] = (1, 2, 3, 4)
 
 TICK_S = PWM_PERIOD_US / US_PER_S
 MAX_PERIOD_S = 255 * TICK_S          # the movement period travels as one byte of 20 ms ticks

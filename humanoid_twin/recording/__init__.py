@@ -28,12 +28,20 @@ from humanoid_twin.recording.readback import (
     rrd_has_blueprint,
     verify_rrd,
 )
-from humanoid_twin.recording.rerun_recorder import TIMELINE, Recorder, RecorderError
+from humanoid_twin.recording.rerun_recorder import (
+    SHORT_RECORDING_S,
+    TIMELINE,
+    Recorder,
+    RecorderError,
+    compact_for,
+)
 
 __all__ = [
     "Recorder",
     "RecorderError",
     "TIMELINE",
+    "SHORT_RECORDING_S",
+    "compact_for",
     "CanLog",
     "CanLogError",
     "DecodedFrame",

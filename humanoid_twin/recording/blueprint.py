@@ -12,7 +12,7 @@ from collections.abc import Sequence
 
 import rerun.blueprint as rrb
 
-from humanoid_twin.hardware import FOOT_OF_SCU, N_SERVOS, SERVO_JOINTS
+from humanoid_twin.hardware import FOOT_OF_SCU, LEG_SCUS, N_SERVOS, SERVO_JOINTS
 from humanoid_twin.protocol.wire import SCUS
 from humanoid_twin.recording.paths import (
     CAN,
@@ -28,7 +28,6 @@ from humanoid_twin.recording.paths import (
 
 __all__ = ["default_blueprint", "LEG_SCUS"]
 
-LEG_SCUS: tuple[int, ...] = (1, 2, 3, 4)     # right leg, left leg, right hip, left hip
 
 
 # The 3D eye: framed on the robot (about 0.5 m tall, standing at the origin, facing +x), seen from

@@ -10,13 +10,13 @@ from typing import Any
 import numpy as np
 import rerun as rr
 
-from humanoid_twin.hardware import FOOT_LENGTH_MM, FOOT_WIDTH_MM, FORCE_SENSOR_XY_MM
+from humanoid_twin.hardware import FOOT_LENGTH_MM, FOOT_WIDTH_MM, FORCE_SENSOR_LABELS, FORCE_SENSOR_XY_MM
 from humanoid_twin.recording.columns import GREEN, ORANGE, SENSOR_COLOURS
 from humanoid_twin.recording.paths import BODIES, WORLD, foot_view_path
 
 __all__ = ["log_static", "log_geometry", "log_foot_static", "view_xy", "SENSOR_LABELS"]
 
-SENSOR_LABELS = ("FL", "FR", "RL", "RR")
+SENSOR_LABELS = FORCE_SENSOR_LABELS      # table 12 order
 # An infinite MuJoCo plane (size 0) is drawn as a square of this half size (m).
 _FLOOR_HALF_M = 1.5
 

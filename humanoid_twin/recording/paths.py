@@ -3,7 +3,7 @@ and the tests). Paths carry no leading ``/``; rerun stores them as ``/scu/...``.
 
 from __future__ import annotations
 
-from humanoid_twin.hardware import FOOT_OF_SCU, N_SERVOS, SCU_NAMES
+from humanoid_twin.hardware import FOOT_OF_SCU, FORCE_SENSOR_NAMES, N_SERVOS, SCU_NAMES
 
 __all__ = [
     "SENSOR_NAMES",
@@ -23,7 +23,7 @@ __all__ = [
 ]
 
 # Table 12 order (seed 000): front-left, front-right, rear-left, rear-right.
-SENSOR_NAMES: tuple[str, str, str, str] = ("front_left", "front_right", "rear_left", "rear_right")
+SENSOR_NAMES: tuple[str, ...] = tuple(n.replace("-", "_") for n in FORCE_SENSOR_NAMES)
 # The series of ``<servo>/position`` (degrees, servo frame): the Master's final reference
 # (actuators.servo[i].ref), the trajectory set-point of this tick (TRAJECTORY), the position the
 # servo is driven to (PWM, after the controller), the firmware's measured position (int8), the

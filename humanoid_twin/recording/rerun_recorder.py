@@ -53,7 +53,7 @@ from humanoid_twin.recording.columns import (
 from humanoid_twin.recording.geometry import log_static
 from humanoid_twin.recording.paths import BODIES, SUPERVISOR, WORLD, foot_view_path, scu_path
 
-__all__ = ["Recorder", "RecorderError", "TIMELINE", "Column"]
+__all__ = ["Recorder", "RecorderError", "TIMELINE", "Column", "compact_for", "SHORT_RECORDING_S"]
 
 TIMELINE = "sim_time"
 
@@ -65,8 +65,19 @@ _LOAD_RADIUS_MAX_MM = 30.0
 _MAX_CHUNK_ROWS = 10_000
 # Height (m) of the CoP point and support polygon above the platform surface, so they show.
 _ON_FLOOR_M = 0.001
+# Recordings up to this many simulated seconds keep rerun's footer index in memory to the end and
+# get their footer written by rerun at close (the index grows ~0.04 MB per simulated second with
+# the default 10 s chunks: a few MB at most); longer (or open-ended) ones stream without it, for
+# flat memory, and are compacted at close (about 1 s per simulated minute). compact_for() decides.
+SHORT_RECORDING_S = 120.0
 # rerun's TextLog levels accepted by log_event
 LEVELS = ("TRACE", "DEBUG", "INFO", "WARN", "ERROR", "CRITICAL")
+
+
+def compact_for(expected_s: float | None) -> bool:
+    """The ``compact`` to give a :class:`Recorder` for a run of ``expected_s`` simulated seconds
+    (None: unknown or open-ended, as ``serve``): False up to :data:`SHORT_RECORDING_S`."""
+    return expected_s is None or expected_s > SHORT_RECORDING_S
 
 
 class RecorderError(RuntimeError):
