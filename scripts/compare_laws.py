@@ -3,12 +3,12 @@
 
 Each law is plugged in for the BALANCE control type (``--law balance=...``), so the host's plans
 are the same for all: ``stand`` (leader/follower gains on the leg boards, docs/balance.md) and
-``levantar_perna`` (the law on the support leg in the hold). For each law:
+``levantar_perna`` (the law on the support leg in the hold and the lower). For each law:
 
 - largest platform tilt held toes up: bisection to 1 deg (1 deg/s ramp, 2 s settling, seed 0;
   held = not fallen, CoP strictly inside the support polygon all along);
 - at a 20 deg tilt: the smallest CoP margin and the RMS error of the boards' CoP;
-- ``levantar_perna`` perna 1 and 2, seeds 0-4: the smallest CoP margin.
+- ``levantar_perna`` perna 1 and 2, seeds 0-9: the smallest CoP margin.
 
 Prints a markdown table. ``--jobs N`` runs N processes (default 2).
 """
@@ -32,7 +32,7 @@ LAWS: dict[str, str] = {
     "examples/cop_pd_law.py (CopPD)": "examples.cop_pd_law:CopPD",
 }
 TILT_MAX = 44
-ONE_LEG_SEEDS = range(5)
+ONE_LEG_SEEDS = range(10)
 
 
 def _law_class(ref: str) -> Any:
