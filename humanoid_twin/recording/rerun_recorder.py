@@ -466,7 +466,10 @@ class Recorder:
             self._closed = True
             atexit.unregister(self.close)
             try:
-                self.rec.flush(timeout_sec=timeout_s)
+                try:
+                    self.rec.flush(timeout_sec=timeout_s)
+                except RuntimeError as exc:   # rerun's file writer failed (a full disk, EFBIG)
+                    raise OSError(f"cannot write the recording {str(self.path)!r}: {exc}") from exc
             finally:
                 self.rec.disconnect()
                 self.wall_s += time.perf_counter() - w0
