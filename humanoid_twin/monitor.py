@@ -29,6 +29,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
+from humanoid_twin.clock import US_PER_S
 from humanoid_twin.hardware import FOOT_OF_SCU, PWM_PERIOD_US
 from humanoid_twin.plant.plant import GroundTruth
 from humanoid_twin.twin import Twin
@@ -71,7 +72,7 @@ class Monitor:
     def sample(self) -> None:
         """One 20 ms sample of the truth (after the boards' ticks at this instant)."""
         twin = self.twin
-        if twin.now_s < self.start_s:
+        if twin.clock.now_us < self.start_s * US_PER_S:
             return
         gt = twin.plant.truth()
         self.last = gt
@@ -87,7 +88,7 @@ class Monitor:
         """Firmware CoP of board ``scu`` (computed at its tick, just now) vs the contact CoP."""
         twin = self.twin
         slave = twin.slaves[scu]
-        if twin.now_s < self.start_s or not slave.cop_loaded or not slave.calibrated:
+        if not slave.cop_loaded or twin.clock.now_us < self.start_s * US_PER_S or not slave.calibrated:
             return
         truth = twin.plant.foot_cop_mm(foot)
         if truth is None:
