@@ -156,6 +156,31 @@ def test_frame_timing_in_virtual_time():
     assert net.bus_load == pytest.approx((b1 + b2) / 5000)
 
 
+def test_send_at_requests_for_a_later_instant_only_when_nothing_is_due_before():
+    """A Slave answers 20 us after an actuation packet: CanController.send_at(msg, t) requests the
+    frame for that instant without a clock event, and is refused when an event is due first."""
+    clock, net, nodes, rec = make_net()
+    clock.run_until(1000)
+    slave = nodes[1]
+    msg = slave.load_tx(None, sens_id(1, 0), bytes(range(8)))
+    clock.schedule(1010, lambda: None)
+    with pytest.raises(ValueError, match="due before"):
+        slave.send_at(msg, 1020)
+    assert slave.pending == 0
+    assert slave.send_at(msg, 1005)                   # nothing due up to 1005
+    clock.run_until(2000)
+    bits = frame_bits(msg.arbitration_id, bytes(range(8)))
+    assert [(t, i) for t, i, _ in rec["master"].got] == [(1005 + bits - 3, msg.arbitration_id)]
+
+
+def test_load_tx_checks_the_frame_once():
+    clock, net, nodes, _ = make_net()
+    with pytest.raises(CanError, match="0..0x7FF"):
+        nodes[1].load_tx(None, 0x800, b"")
+    with pytest.raises(CanError, match="0..8 data bytes"):
+        nodes[1].load_tx(None, 0x100, bytes(9))
+
+
 def test_bitrate_scales_frame_time():
     clock = Clock()
     net = CanNetwork(clock, bitrate=125_000)     # 8 us per bit
