@@ -27,13 +27,14 @@ Callback = Callable[[], None]
 class Clock:
     """Integer-microsecond discrete-event scheduler."""
 
-    __slots__ = ("now_us", "_queue", "_seq", "events_run")
+    __slots__ = ("now_us", "_queue", "_seq", "events_run", "_until")
 
     def __init__(self) -> None:
         self.now_us: int = 0
         self._queue: list[tuple[int, int, Callback]] = []
         self._seq = 0
         self.events_run = 0
+        self._until = -1          # the target of the run_until in progress (-1: none)
 
     @property
     def now_s(self) -> float:
@@ -83,16 +84,32 @@ class Clock:
         queue = self._queue
         return queue[0][0] if queue else None
 
+    def skip_to(self, t_us: int) -> bool:
+        """Inside an event, move ``now_us`` on to ``t_us`` when that changes nothing: no event is
+        due up to ``t_us`` and ``t_us`` is within the ``run_until`` in progress. The caller then
+        does at once what an event at ``t_us`` would have done (the CAN wire's end of frame).
+        Returns False, and moves nothing, otherwise."""
+        queue = self._queue
+        if t_us > self._until or (queue and queue[0][0] <= t_us) or t_us < self.now_us:
+            return False
+        self.now_us = t_us
+        return True
+
     def run_until(self, t_us: int) -> None:
         """Run every event due at or before ``t_us``, then set ``now_us = t_us``."""
         queue = self._queue
         pop = heapq.heappop
         n = 0
-        while queue and queue[0][0] <= t_us:
-            t, _, cb = pop(queue)
-            self.now_us = t
-            cb()
-            n += 1
+        outer = self._until
+        self._until = t_us if t_us < outer or outer < 0 else outer
+        try:
+            while queue and queue[0][0] <= t_us:
+                t, _, cb = pop(queue)
+                self.now_us = t
+                cb()
+                n += 1
+        finally:
+            self._until = outer
         self.events_run += n
         if t_us > self.now_us:
             self.now_us = t_us

@@ -63,6 +63,7 @@ ERROR_EXTRA_BITS = 7            # (6 flag + 8 delimiter + 3 IFS) - (7 EOF + 3 IF
 SUSPEND_BITS = 8                # error-passive transmitter: suspend transmission after IFS
 
 _OK, _DROP, _CORRUPT = 0, 1, 2
+_MAX_INLINE = 4                 # nested frame ends handled inline at most (a bounded call depth)
 _channel_ids = itertools.count(1)
 
 
@@ -257,6 +258,7 @@ class CanNetwork(ErrorConfinement, ForeignPath):
         self._dom_end = 0           # end of the last dominant bit on the wire
         self._seq = 0
         self._rec_dirty = False     # some REC may be > 0
+        self._inline = 0            # frame ends being handled inline (Clock.skip_to), nested
         # faults
         self._faults_on = False
         self._drop_prob = 0.0
@@ -531,8 +533,20 @@ class CanNetwork(ErrorConfinement, ForeignPath):
             bu = self._bit_us
             end = start + bits * bu
             self._dom_end = end - TRAILING_RECESSIVE_BITS * bu
+            self._idle_from = end
             clock = self.clock
-            clock.schedule_fast(end - 3 * bu, self._complete_cb)
+            t_eof = end - 3 * bu
+            # nothing due up to the end of the frame (and within the run in progress): nothing can
+            # abort it or join the wire meanwhile, so its end is handled now, at that instant
+            if self._inline < _MAX_INLINE and clock.skip_to(t_eof):
+                self._inline += 1
+                try:
+                    self._complete()
+                finally:
+                    self._inline -= 1
+                return
+            clock.schedule_fast(t_eof, self._complete_cb)
+            return
         else:
             end = start + self._dur(bits)
             self._dom_end = end - self._dur(TRAILING_RECESSIVE_BITS)
