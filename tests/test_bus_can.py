@@ -173,6 +173,28 @@ def test_send_at_requests_for_a_later_instant_only_when_nothing_is_due_before():
     assert [(t, i) for t, i, _ in rec["master"].got] == [(1005 + bits - 3, msg.arbitration_id)]
 
 
+def test_clock_skip_to_only_over_nothing_and_within_the_run():
+    """Clock.skip_to (the wire handles a frame's end at once): inside an event, now moves on only
+    when no event is due up to the target and the target is within the run_until in progress."""
+    clock = Clock()
+    seen: list[tuple[str, int, bool]] = []
+
+    def first() -> None:
+        seen.append(("skip over the event at 50", clock.now_us, clock.skip_to(60)))
+        seen.append(("skip to 40", clock.now_us, clock.skip_to(40)))
+        seen.append(("back to 30", clock.now_us, clock.skip_to(30)))
+
+    clock.schedule(10, first)
+    clock.schedule(50, lambda: seen.append(("event", clock.now_us, True)))
+    assert not clock.skip_to(5)                       # outside a run
+    clock.run_until(45)
+    clock.schedule(80, lambda: seen.append(("beyond the run", clock.now_us, clock.skip_to(200))))
+    clock.run_until(100)
+    assert seen == [("skip over the event at 50", 10, False), ("skip to 40", 10, True),
+                    ("back to 30", 40, False), ("event", 50, True), ("beyond the run", 80, False)]
+    assert clock.now_us == 100
+
+
 def test_load_tx_checks_the_frame_once():
     clock, net, nodes, _ = make_net()
     with pytest.raises(CanError, match="0..0x7FF"):
