@@ -321,13 +321,13 @@ def run(opts: RunOptions, on_progress: Callable[[float, float | None], None] | N
             split = spec.double_support or the_plan.lead is not None
             the_plan = the_plan.with_control(CONTROL_CHOICES[opts.control], split=split)
         motion_s = float(np.sum(the_plan.t)) if spec.moves else 0.0
-        tilt_s = abs(opts.tilt) / TILT_RATE_DEG_S
+        # the run after the boot: the motion or the platform's tilt, whichever is longer, then settle
+        after_boot_s = max(motion_s, abs(opts.tilt) / TILT_RATE_DEG_S) + SETTLE_S
         if opts.out is not None:
             from humanoid_twin.recording import Recorder, compact_for
 
             # the run's length, bounded from above before the boot (BOOT_TIMEOUT_S >= the boot)
-            expected_s = opts.duration if opts.duration is not None else (
-                BOOT_TIMEOUT_S + max(motion_s, tilt_s) + SETTLE_S)
+            expected_s = opts.duration if opts.duration is not None else BOOT_TIMEOUT_S + after_boot_s
             recorder = Recorder(opts.out, twin, compact=compact_for(expected_s))
         if opts.can_log is not None:
             from humanoid_twin.recording import CanLog
@@ -358,7 +358,7 @@ def run(opts: RunOptions, on_progress: Callable[[float, float | None], None] | N
                 "from power-on): give at least that")
         duration = opts.duration
         if duration is None:
-            duration = boot_s + max(motion_s, tilt_s) + SETTLE_S
+            duration = boot_s + after_boot_s
         if opts.tilt:
             twin.plant.set_tilt_profile(tilt_profile(opts.tilt, boot_s))
         end[0] = duration

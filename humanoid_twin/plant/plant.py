@@ -748,6 +748,5 @@ _PULSE_MIN_US = hardware.pulse_from_deg(-POS_LIMIT_DEG)
 _PULSE_MAX_US = hardware.pulse_from_deg(POS_LIMIT_DEG)
 _DEG_PER_RAD = 180.0 / math.pi
 _COUNTS_PER_N = 1.0 / hardware.FORCE_N_PER_COUNT
-
 _SIDES = {"r": "r_foot", "right": "r_foot", "r_foot": "r_foot",
           "l": "l_foot", "left": "l_foot", "l_foot": "l_foot"}
