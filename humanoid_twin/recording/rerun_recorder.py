@@ -25,6 +25,7 @@ import atexit
 import math
 import os
 import pathlib
+import threading
 import time
 import uuid
 from collections.abc import Iterable, Sequence
@@ -465,15 +466,26 @@ class Recorder:
         finally:
             self._closed = True
             atexit.unregister(self.close)
+            writer_failed = False
             try:
                 try:
                     self.rec.flush(timeout_sec=timeout_s)
                 except RuntimeError as exc:   # rerun's file writer failed (a full disk, EFBIG)
+                    writer_failed = True
                     raise OSError(f"cannot write the recording {str(self.path)!r}: {exc}") from exc
             finally:
-                self.rec.disconnect()
+                if writer_failed:
+                    # with its writer thread gone, rerun's disconnect (and its own shutdown at
+                    # interpreter exit) can wait for it forever (seen under load): the disconnect
+                    # bounded, rerun's exit handler dropped; the file is lost anyway
+                    rr.unregister_shutdown()
+                    t = threading.Thread(target=self.rec.disconnect, daemon=True)
+                    t.start()
+                    t.join(timeout_s)
+                else:
+                    self.rec.disconnect()
                 self.wall_s += time.perf_counter() - w0
-                if self.compact:
+                if self.compact and not writer_failed:
                     from humanoid_twin.recording.readback import compact_rrd
 
                     w1 = time.perf_counter()
