@@ -257,6 +257,25 @@ def test_slide23_filters_route_frames():
     assert net.frames_sent == 3                   # the unreceived frame still used the wire
 
 
+def test_rx_ids_hand_over_only_those_frames_and_count_the_others():
+    clock = Clock()
+    net = CanNetwork(clock)
+    got: list[int] = []
+    master = net.attach("master", master_filters(), None)
+    mine = act_id(2, 0), act_id(2, 1)
+    slave = net.attach("slave2", slave_filters(), lambda m: got.append(m.arbitration_id), rx_ids=mine)
+    for i, ident in enumerate((act_id(1, 0), act_id(2, 0), act_id(3, 1), act_id(2, 1), act_id(1, 0))):
+        clock.run_until(500 * (i + 1))
+        assert master.send(std(ident))
+    clock.run_until(5000)
+    assert got == [act_id(2, 0), act_id(2, 1)]     # the interrupt runs for its own two IDs only
+    assert slave.rx_skipped == 3                   # the three others: let in and counted
+    net.force_bus_off("slave2")                    # a bus-off node takes nothing, counts nothing
+    master.send(std(act_id(1, 0)))
+    clock.run_until(6000)
+    assert slave.rx_skipped == 3 and len(got) == 2
+
+
 def test_three_tx_buffers_fourth_request_refused():
     clock, net, nodes, rec = make_net(n_slaves=1)
     s = nodes[1]

@@ -27,7 +27,7 @@ from __future__ import annotations
 
 import itertools
 import random
-from collections.abc import Callable
+from collections.abc import Callable, Collection
 
 import can
 
@@ -165,6 +165,12 @@ class CanController:
         """TX buffers in use (requested frames not yet completed or aborted)."""
         return self._n_pending
 
+    @property
+    def rx_skipped(self) -> int:
+        """Frames the acceptance filters took that were outside the node's ``rx_ids`` (only
+        counted, not handed to its RX interrupt; :meth:`CanNetwork.attach`)."""
+        return getattr(self.bus, "rx_skipped", 0)
+
     def load_tx(self, msg: can.Message | None, arbitration_id: int, payload: bytes) -> can.Message:
         """The message to hand to :meth:`send`: ``msg`` reloaded with ``payload`` (like loading
         the PIC's TXBn registers) when this controller holds none of the node's frames any more,
@@ -277,8 +283,15 @@ class CanNetwork(ErrorConfinement, ForeignPath):
 
     # -- setup -------------------------------------------------------------------------------
     def attach(self, name: str, can_filters: list[dict] | None,
-               on_rx: Callable[[can.Message], None]) -> CanController:
-        """Connect a node: its acceptance filters (slide 23) and its RX interrupt ``on_rx``."""
+               on_rx: Callable[[can.Message], None], rx_ids: Collection[int] | None = None) -> CanController:
+        """Connect a node: its acceptance filters (slide 23) and its RX interrupt ``on_rx``.
+
+        ``rx_ids``: the standard identifiers ``on_rx`` acts on, when the filters let in more
+        (a Slave's mask lets in every Master frame; its ``lowISR`` drops the frames for other
+        boards at once). On this project's own interface a frame the filters take with
+        another identifier is only counted (:attr:`CanController.rx_skipped`), without the
+        call; on a foreign python-can interface every accepted frame reaches ``on_rx``.
+        """
         if self._closed:
             raise RuntimeError("CanNetwork was shut down")
         if not isinstance(name, str) or not name:
@@ -291,7 +304,7 @@ class CanNetwork(ErrorConfinement, ForeignPath):
         ctrl._filt = parse_filters(can_filters)
         if self._twin:
             # the RX interrupt is called straight from the bus; a bus-off node is muted instead
-            bus = TwinBus(self.channel, can_filters=can_filters, rx_callback=ctrl._on_rx)
+            bus = TwinBus(self.channel, can_filters=can_filters, rx_callback=ctrl._on_rx, rx_ids=rx_ids)
             bus.mark_network_node()
         else:
             bus = open_foreign_bus(self.interface, self.channel, can_filters)

@@ -4,7 +4,10 @@ Buses opened on the same channel name share one medium (in this process). ``send
 delivers the frame at once, and only to the other members whose acceptance filters (python-can
 ``can_filters``: ``can_id``/``can_mask``, the PIC's masks and filters of seed 002 slide 23) take
 it. A member with an ``rx_callback`` (its receive-interrupt line) has it called with the message;
-the others queue it for ``recv()``.
+the others queue it for ``recv()``. A member that also names its ``rx_ids`` (the identifiers its
+interrupt acts on) has a frame its filters take with another identifier only counted
+(``rx_skipped``), without the call: what an interrupt whose first act is to drop such a frame
+would do (a Slave's ``lowISR``, whose slide 23 mask lets in every Master frame).
 
 When a :class:`~humanoid_twin.bus.network.CanNetwork` owns the channel, frames sent by a bus
 that is not one of the network's nodes (a user script, a python-can tool) are handed to the
@@ -20,7 +23,7 @@ from __future__ import annotations
 import threading
 import time
 from collections import deque
-from collections.abc import Callable
+from collections.abc import Callable, Collection
 from typing import Any, Protocol
 
 import can
@@ -131,6 +134,9 @@ class TwinBus(BusABC):
     :param can_filters: python-can filters (``can_id``, ``can_mask``, optional ``extended``).
     :param receive_own_messages: also deliver this bus's own frames to itself.
     :param rx_callback: called with each accepted frame instead of queueing it (an interrupt).
+    :param rx_ids: with ``rx_callback``: the standard identifiers it acts on. An accepted frame
+        with another identifier is counted in :attr:`rx_skipped` and not handed to it (None:
+        every accepted frame is).
     """
 
     def __init__(
@@ -139,6 +145,7 @@ class TwinBus(BusABC):
         can_filters: can.typechecking.CanFilters | None = None,
         receive_own_messages: bool = False,
         rx_callback: RxCallback | None = None,
+        rx_ids: Collection[int] | None = None,
         **kwargs: object,
     ) -> None:
         if channel is None:
@@ -149,9 +156,12 @@ class TwinBus(BusABC):
         self.channel_info = f"humanoid_twin channel {channel}"
         self.receive_own_messages = bool(receive_own_messages)
         self._rx_callback: RxCallback | None = rx_callback
+        self._rx_ids: frozenset[int] | None = None if rx_ids is None else frozenset(rx_ids)
+        self.rx_skipped = 0         # accepted frames outside rx_ids: counted, not handed over
         # standard ID -> the receive interrupts of the members that take this bus's frame with
-        # that ID, when all of them have one (the common case: no per-member work per frame)
-        self._fast: dict[int, tuple[RxCallback, ...]] = {}
+        # that ID (and the members that only count it, outside their rx_ids), when all of them
+        # have one (the common case: no per-member work per frame)
+        self._fast: dict[int, tuple[tuple[RxCallback, ...], tuple[TwinBus, ...]]] = {}
         self._queue: deque[can.Message] = deque()
         self._cond = threading.Condition()
         self._waiting = 0
@@ -233,23 +243,33 @@ class TwinBus(BusABC):
     def deliver(self, msg: can.Message) -> None:
         """Hand ``msg`` (already on the wire) to every accepting member of the channel."""
         extended = msg.is_extended_id
+        arb = msg.arbitration_id
         if not extended:
-            cbs = self._fast.get(msg.arbitration_id)
-            if cbs is not None:
+            fast = self._fast.get(arb)
+            if fast is not None:
+                cbs, skips = fast
                 for cb in cbs:
                     cb(msg)
+                for b in skips:
+                    b.rx_skipped += 1
                 return
         medium = self._medium
-        route = medium.route(msg.arbitration_id, extended)
+        route = medium.route(arb, extended)
         targets = [b for b in route if b is not self or self.receive_own_messages]
         if not extended and all(b.rx_callback is not None for b in targets):
-            cbs = self._fast[msg.arbitration_id] = tuple(b.rx_callback for b in targets)  # type: ignore[misc]
+            skips = tuple(b for b in targets if b._rx_ids is not None and arb not in b._rx_ids)
+            cbs = tuple(b.rx_callback for b in targets if b not in skips)
+            self._fast[arb] = (cbs, skips)  # type: ignore[assignment]
             for cb in cbs:
-                cb(msg)
+                cb(msg)  # type: ignore[misc]
+            for b in skips:
+                b.rx_skipped += 1
             return
         for bus in targets:
             cb = bus.rx_callback
-            if cb is not None:
+            if cb is not None and bus._rx_ids is not None and not extended and arb not in bus._rx_ids:
+                bus.rx_skipped += 1
+            elif cb is not None:
                 cb(msg)
             else:
                 # a queueing reader (a tool) reads later: give it its own copy, the sender may

@@ -71,7 +71,7 @@ class SlaveCan:
         "_tx_index",
         "_tx_due_us",
         "rx_packets",
-        "rx_ignored",
+        "_rx_ignored",
         "rx_errors",
         "tx_packets",
         "tx_silent",
@@ -103,7 +103,7 @@ class SlaveCan:
         self._tx_due_us = -1
         # counters (recording, tests)
         self.rx_packets = 0              # actuation packets taken
-        self.rx_ignored = 0              # frames for other boards / not actuation
+        self._rx_ignored = 0             # frames for other boards / not actuation (see rx_ignored)
         self.rx_errors = 0               # malformed actuation packets dropped
         self.tx_packets = 0              # sensor packets handed to the controller
         self.tx_silent = 0               # packets left unanswered (PWM window)
@@ -120,15 +120,24 @@ class SlaveCan:
 
     def initCan(self, network: Any) -> None:
         """``initCan`` (table 18): the CAN peripheral on the network, slide 23 mask/filters,
-        receive interrupt = :meth:`lowISR`."""
-        self.controller = network.attach(self.node_name, slave_filters(), self.lowISR)
+        receive interrupt = :meth:`lowISR`. The frames that interrupt acts on, this board's two
+        actuation identifiers, are named to the network (``rx_ids``): every other frame the mask
+        lets in is counted by the controller without the call, as lowISR would drop it at once."""
+        self.controller = network.attach(self.node_name, slave_filters(), self.lowISR, rx_ids=self._rx_index)
+
+    @property
+    def rx_ignored(self) -> int:
+        """Frames the slide 23 filters let in that were not an actuation packet for this board:
+        those dropped by :meth:`lowISR` plus those the controller did not hand to it."""
+        c = self.controller
+        return self._rx_ignored + (c.rx_skipped if c is not None else 0)
 
     # -- interrupt ------------------------------------------------------------------------------
     def lowISR(self, msg: can.Message) -> None:
         """``lowISR`` (table 17, fig. 9, slide 29): the CAN receive interrupt (RXBnIF)."""
         index = self._rx_index.get(msg.arbitration_id)
         if index is None:                          # not for this board, or not an actuation
-            self.rx_ignored += 1
+            self._rx_ignored += 1
             return
         self.controller.abort()                    # abort the previous TX
         self._tx_due_us = -1                       # and an answer still in the ISR
