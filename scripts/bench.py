@@ -156,8 +156,9 @@ def main() -> None:
               f"x{monitored / phys:.2f} / x{monitored_cpu / phys_cpu:.2f}   (target <= 2.0, aim 1.5)")
         print(f"recording on  (run .rrd)  {recorded:7.3f}  {recorded_cpu:7.3f}  {sec / recorded:6.1f}   "
               f"x{recorded / phys:.2f} / x{recorded_cpu / phys_cpu:.2f}   (target <= 3.0)")
-        print(f"MuJoCo inside the twin    {own:7.3f} s (x{own / phys:.2f} of MuJoCo alone: short chunks between the "
-              f"boards' work, scripts/physics_replay.py); recording on = x{recorded / own:.2f} of it")
+        print(f"MuJoCo inside the twin    {own:7.3f} s (x{own / phys:.2f} of MuJoCo alone: short chunks "
+              f"between the boards' work, scripts/physics_replay.py); "
+              f"recording on = x{recorded / own:.2f} of it")
         print(f"startup to first step     {start:7.3f} s (fresh process, target < 1 s)")
         print(f"import of the recording   {rec_import:7.3f} s (once per process, when recording)")
         print(f"CAN frames                {summary['can_frames']}  serial frames {summary['serial_frames']}")
