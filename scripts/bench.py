@@ -37,12 +37,18 @@ from humanoid_twin.protocol.wire import N_SCU
 from humanoid_twin.scenarios import RunOptions, run
 
 
-def bare_physics(seconds: float, chunk_us: int = 2_500) -> tuple[float, float]:
-    """(wall, CPU) seconds for MuJoCo alone to simulate ``seconds`` (same model, same step size)."""
+def standing_plant() -> Plant:
+    """A fresh plant, every servo holding the ``stand`` keyframe: MuJoCo alone, the baseline."""
     plant = Plant()
     pulses = plant.keyframe_pulses("stand")
     for scu in range(1, N_SCU + 1):
         plant.set_pwm(scu, pulses[scu])
+    return plant
+
+
+def bare_physics(seconds: float, chunk_us: int = 2_500) -> tuple[float, float]:
+    """(wall, CPU) seconds for MuJoCo alone to simulate ``seconds`` (same model, same step size)."""
+    plant = standing_plant()
     m, d = plant.model, plant.data
     n_total = round(seconds * US_PER_S) // plant.timestep_us
     per_chunk = max(1, chunk_us // plant.timestep_us)

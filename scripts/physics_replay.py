@@ -24,9 +24,8 @@ import time
 
 import mujoco
 import numpy as np
+from bench import standing_plant  # scripts/bench.py, beside this script: the same baseline
 
-from humanoid_twin.plant import Plant
-from humanoid_twin.protocol.wire import N_SCU
 from humanoid_twin.scenarios import RunOptions, run
 
 
@@ -54,10 +53,7 @@ def twin_chunks(seconds: float) -> tuple[float, list[tuple[int, np.ndarray]]]:
 
 def alone(chunks: list[tuple[int, np.ndarray]], replay: bool) -> float:
     """Seconds for a fresh plant to take the same chunks, standing or with the logged controls."""
-    plant = Plant()
-    pulses = plant.keyframe_pulses("stand")
-    for scu in range(1, N_SCU + 1):
-        plant.set_pwm(scu, pulses[scu])
+    plant = standing_plant()
     m, d = plant.model, plant.data
     t0 = time.perf_counter()
     if replay:
