@@ -199,6 +199,13 @@ class TwinBus(BusABC):
         if medium is not None:
             medium.invalidate()
 
+    def skips(self, arbitration_id: int, is_extended: bool = False) -> bool:
+        """Whether an accepted frame with that ID is only counted (outside ``rx_ids``), not handed
+        to ``rx_callback``."""
+        ids = self._rx_ids
+        return (ids is not None and self._rx_callback is not None and not is_extended
+                and arbitration_id not in ids)
+
     def accepts(self, arbitration_id: int, is_extended: bool = False) -> bool:
         """Whether this bus's acceptance filters take a frame with that ID."""
         return filters_accept(self._filt, arbitration_id, is_extended)
@@ -257,7 +264,7 @@ class TwinBus(BusABC):
         route = medium.route(arb, extended)
         targets = [b for b in route if b is not self or self.receive_own_messages]
         if not extended and all(b.rx_callback is not None for b in targets):
-            skips = tuple(b for b in targets if b._rx_ids is not None and arb not in b._rx_ids)
+            skips = tuple(b for b in targets if b.skips(arb))
             cbs = tuple(b.rx_callback for b in targets if b not in skips)
             self._fast[arb] = (cbs, skips)  # type: ignore[assignment]
             for cb in cbs:
@@ -267,7 +274,7 @@ class TwinBus(BusABC):
             return
         for bus in targets:
             cb = bus.rx_callback
-            if cb is not None and bus._rx_ids is not None and not extended and arb not in bus._rx_ids:
+            if bus.skips(arb, extended):
                 bus.rx_skipped += 1
             elif cb is not None:
                 cb(msg)
