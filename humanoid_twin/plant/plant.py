@@ -598,10 +598,11 @@ class Plant:
         foot_cop = {foot: (np.array(self._foot_cop(f, pids, fns, pts, foot_tot[f]))
                            if foot_tot[f] > C.LOADED_MIN_N else None)
                     for f, foot in enumerate(FOOT_BODIES)}
-        hull = convex_hull([(xyz[0], xyz[1]) for xyz in pts])
+        hull = convex_hull(pts)
         if total > C.LOADED_MIN_N:
-            cop = np.array((wx / total, wy / total))
-            margin = signed_distance(cop, hull) * 1000.0
+            cop_xy = (wx / total, wy / total)
+            margin = signed_distance(cop_xy, hull) * 1000.0
+            cop = np.array(cop_xy)
         else:
             cop = None
             margin = -math.inf
@@ -638,7 +639,7 @@ class Plant:
         geoms = con.geom[:n].tolist()
         adrs = con.efc_address[:n].tolist()
         dims = con.dim[:n].tolist()
-        pos = con.pos
+        pos = con.pos[:n].tolist()
         ef = d.efc_force
         pyramidal = self._pyramidal
         for c in range(n):
@@ -660,7 +661,7 @@ class Plant:
             if f > 0.0:
                 pids.append(p)
                 fns.append(f)
-                pts.append(pos[c].tolist())
+                pts.append(pos[c])
         return pids, fns, pts
 
     def _foot_cop(self, f: int, pids: list[int], fns: list[float], pts: list[list[float]],
