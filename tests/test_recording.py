@@ -31,6 +31,7 @@ from humanoid_twin.recording import (
     rrd_has_blueprint,
     verify_rrd,
 )
+from humanoid_twin.recording.columns import Column
 from humanoid_twin.twin import Twin
 
 DURATION_US = 3_000_000
@@ -104,6 +105,35 @@ def test_rrd_holds_every_entity_with_one_row_per_sample(run):
         for i in range(1, N_SERVOS + 1):
             assert any(e.startswith(f"scu/{scu}_") and e.endswith(f"servo{i}/position") for e in entities)
     assert rrd_has_blueprint(rrd)
+
+
+def test_extra_columns_are_recorded_and_slow_ones_read_only_on_their_rows(tmp_path):
+    # a user's own series (Recorder(columns=...)): one every sample, one every 5th sample whose
+    # reader (as an expensive one would be) is called only on the rows it is written on
+    fast_calls: list[int] = []
+    slow_calls: list[int] = []
+
+    def fast(t):
+        fast_calls.append(t.now_us)
+        return (t.now_us / 1000.0,)
+
+    def slow(t):
+        slow_calls.append(t.now_us)
+        return (float(len(slow_calls)), -1.0)
+
+    extra = [Column("user/fast", ("t ms",), "ms", fast),
+             Column("user/slow", ("calls", "minus one"), "count", slow, every=5)]
+    rrd = tmp_path / "extra.rrd"
+    with Twin(seed=0) as twin, Recorder(rrd, twin, columns=extra, chunk_s=0.3) as rec:
+        twin.advance_to(1_000_000)
+    assert rec.samples == 51                            # 0, 20 ms, ..., 1 s
+    assert len(fast_calls) == 51
+    assert slow_calls == list(range(0, 1_000_001, 100_000))     # 11 reads, every 100 ms
+    t, v = read_rrd_scalars(rrd, "user/fast")
+    assert np.allclose(v, t * 1000.0) and len(t) == 51
+    t, v = read_rrd_scalars(rrd, "user/slow")
+    assert np.allclose(t, np.arange(11) * 0.1)
+    assert v[:, 0].tolist() == list(range(1, 12)) and set(v[:, 1]) == {-1.0}
 
 
 def test_rrd_passes_rerun_s_own_verification(run, tmp_path):

@@ -63,7 +63,8 @@ class Column:
     ``path``: entity path; ``names``: the series (one value each per tick); ``unit``: of every
     value; ``read(tick)``: the values now, ``len(names)`` floats; ``colors``: one per series or
     None (rerun's palette); ``sparse``: NaN means "no value this tick" (a gap, width 1 only);
-    ``every``: written every ``every``-th sample only (slow counters and flags, COUNTER_EVERY).
+    ``every``: read and written every ``every``-th sample only (slow counters and flags,
+    COUNTER_EVERY).
     """
 
     path: str

@@ -222,7 +222,10 @@ class Recorder:
             self._col[c.path] = col
             col += c.width
         self._ncols = col
-        self._readers = [c.read for c in self.columns]
+        # the readers of a row, by the set of Column.every values that divide its sample number
+        # (a column written every k-th sample is only read then): built once per set
+        self._row_readers: dict[frozenset[int], tuple[list, np.ndarray | None, int]] = {}
+        self._everys = sorted({c.every for c in self.columns})
         try:
             self._signs = servo_signs(twin, self.scus)
         except ValueError as exc:
@@ -231,6 +234,15 @@ class Recorder:
         self._body_names: tuple[str, ...] = tuple(names)
         self._platform = self._body_names.index("platform") if "platform" in self._body_names else None
         self._tick: Tick | None = None
+
+    def _readers_for(self, due: frozenset[int]) -> tuple[list, np.ndarray | None, int]:
+        """The readers of the columns written on a row whose sample number the ``every`` values
+        ``due`` divide, the buffer columns they fill (None: all) and how many."""
+        cols = [c for c in self.columns if c.every in due]
+        if len(cols) == len(self.columns):
+            return [c.read for c in cols], None, self._ncols
+        idx = [self._col[c.path] + j for c in cols for j in range(c.width)]
+        return [c.read for c in cols], np.array(idx, dtype=np.intp), len(idx)
 
     def _alloc(self) -> None:
         rows, nb = self._rows, len(self._body_names)
@@ -267,13 +279,22 @@ class Recorder:
         self._t[i] = now
         self._k[i] = self.samples
         tick = self._tick = start_tick(twin, self._tick, self._signs)
+        k = self.samples
+        due = frozenset(e for e in self._everys if k % e == 0)
+        row = self._row_readers.get(due)
+        if row is None:
+            row = self._row_readers[due] = self._readers_for(due)
+        readers, cols, width = row
         vals: list[float] = []
         ext = vals.extend
-        for read in self._readers:
+        for read in readers:
             ext(read(tick))
-        if len(vals) != self._ncols:
-            raise RecorderError(f"recorder bug: sampled {len(vals)} values for {self._ncols} columns")
-        self._vals[i] = vals
+        if len(vals) != width:
+            raise RecorderError(f"recorder bug: sampled {len(vals)} values for {width} columns")
+        if cols is None:
+            self._vals[i] = vals
+        else:
+            self._vals[i, cols] = vals
 
         truth = tick.truth
         _, pos, quat = plant.body_poses()
