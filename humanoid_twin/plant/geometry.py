@@ -21,23 +21,18 @@ def convex_hull(points: Sequence[Sequence[float]]) -> list[Point]:
     pts = sorted({(float(p[0]), float(p[1])) for p in points})
     if len(pts) <= 2:
         return pts
-    # the turn test (cross product of o->a and o->b) written inline: no call per point
+
+    def cross(o: Point, a: Point, b: Point) -> float:
+        return (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])
+
     lower: list[Point] = []
     for p in pts:
-        px, py = p
-        while len(lower) >= 2:
-            (ox, oy), (ax, ay) = lower[-2], lower[-1]
-            if (ax - ox) * (py - oy) - (ay - oy) * (px - ox) > 0:
-                break
+        while len(lower) >= 2 and cross(lower[-2], lower[-1], p) <= 0:
             lower.pop()
         lower.append(p)
     upper: list[Point] = []
     for p in reversed(pts):
-        px, py = p
-        while len(upper) >= 2:
-            (ox, oy), (ax, ay) = upper[-2], upper[-1]
-            if (ax - ox) * (py - oy) - (ay - oy) * (px - ox) > 0:
-                break
+        while len(upper) >= 2 and cross(upper[-2], upper[-1], p) <= 0:
             upper.pop()
         upper.append(p)
     return lower[:-1] + upper[:-1]
@@ -68,23 +63,12 @@ def signed_distance(point: Sequence[float], hull: Sequence[Point]) -> float:
         return -_segment_distance(p, hull[0], hull[1])
     inside = True
     nearest = math.inf
-    px, py = p
-    hypot = math.hypot
     for k in range(n):
-        ax, ay = hull[k]
-        bx, by = hull[k + 1] if k + 1 < n else hull[0]
-        ex, ey = bx - ax, by - ay
+        a = hull[k]
+        b = hull[(k + 1) % n]
+        ex, ey = b[0] - a[0], b[1] - a[1]
         # left of every edge of a counter-clockwise polygon = inside
-        if ex * (py - ay) - ey * (px - ax) < 0.0:
+        if ex * (p[1] - a[1]) - ey * (p[0] - a[0]) < 0.0:
             inside = False
-        # the distance to the edge: _segment_distance, inline (one call per edge saved)
-        den = ex * ex + ey * ey
-        if den == 0.0:
-            t = 0.0
-        else:
-            t = ((px - ax) * ex + (py - ay) * ey) / den
-            t = 0.0 if t < 0.0 else (1.0 if t > 1.0 else t)
-        d = hypot(px - (ax + t * ex), py - (ay + t * ey))
-        if d < nearest:
-            nearest = d
+        nearest = min(nearest, _segment_distance(p, a, b))
     return nearest if inside else -nearest
