@@ -251,24 +251,18 @@ class TwinBus(BusABC):
         """Hand ``msg`` (already on the wire) to every accepting member of the channel."""
         extended = msg.is_extended_id
         arb = msg.arbitration_id
-        if not extended:
-            fast = self._fast.get(arb)
-            if fast is not None:
-                cbs, skips = fast
-                for cb in cbs:
-                    cb(msg)
-                for b in skips:
-                    b.rx_skipped += 1
-                return
-        medium = self._medium
-        route = medium.route(arb, extended)
-        targets = [b for b in route if b is not self or self.receive_own_messages]
-        if not extended and all(b.rx_callback is not None for b in targets):
-            skips = tuple(b for b in targets if b.skips(arb))
-            cbs = tuple(b.rx_callback for b in targets if b not in skips)
-            self._fast[arb] = (cbs, skips)  # type: ignore[assignment]
+        fast = None if extended else self._fast.get(arb)
+        if fast is None:
+            route = self._medium.route(arb, extended)
+            targets = [b for b in route if b is not self or self.receive_own_messages]
+            if not extended and all(b.rx_callback is not None for b in targets):
+                skips = tuple(b for b in targets if b.skips(arb))
+                fast = self._fast[arb] = (  # type: ignore[assignment]
+                    tuple(b.rx_callback for b in targets if b not in skips), skips)
+        if fast is not None:
+            cbs, skips = fast
             for cb in cbs:
-                cb(msg)  # type: ignore[misc]
+                cb(msg)
             for b in skips:
                 b.rx_skipped += 1
             return
