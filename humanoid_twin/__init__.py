@@ -1,4 +1,10 @@
 """humanoid-twin: a physics-based digital twin of the University of Aveiro humanoid's legs and of
 its 2006 distributed control system (PC -> RS-232 -> Master -> CAN -> 8 Slaves -> servos)."""
 
+from humanoid_twin.core import install_source_first, pure_python_requested
+
 __version__ = "0.1.0"
+
+if pure_python_requested():
+    # the interpreted source even where the compiled core is installed (docs/architecture.md)
+    install_source_first()

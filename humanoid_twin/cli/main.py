@@ -68,6 +68,13 @@ def _version() -> str:
         return __version__
 
 
+def core_kind() -> str:
+    """Which core runs, for ``--version``: ``compiled`` or ``python`` (humanoid_twin/core.py)."""
+    from humanoid_twin.core import core_kind as kind
+
+    return kind()
+
+
 def _scenario_lines() -> str:
     """One line per registered scenario (its docstring's first line), then its defaults."""
     from humanoid_twin.scenarios import DEFAULT_MOTION_DEG, DEFAULT_T_S, REGISTRY
@@ -101,7 +108,7 @@ def build_parser() -> argparse.ArgumentParser:
         "(PC -> RS-232 -> Master -> CAN -> 8 Slaves -> servos, on a MuJoCo robot).\n\n" + _scenario_lines(),
         epilog=EXAMPLES, formatter_class=raw,
     )
-    parser.add_argument("--version", action="version", version=f"%(prog)s {_version()}")
+    parser.add_argument("--version", action="version", version=f"%(prog)s {_version()} (core: {core_kind()})")
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser, metavar="COMMAND")
 
     run = sub.add_parser(

@@ -1,0 +1,71 @@
+"""Which core runs: the compiled one (C extension modules built from the firmware's own source
+with its augmenting ``.pxd`` declarations) or the interpreted source (docs/architecture.md,
+"The compiled core").
+
+``HUMANOID_TWIN_PURE_PYTHON=1`` makes every ``humanoid_twin`` module load from its ``.py`` even
+where a compiled module sits beside it (for debugging: breakpoints and tracebacks in the firmware
+work there). The switch is read once, when the package is first imported.
+"""
+
+from __future__ import annotations
+
+import importlib.machinery
+import importlib.util
+import os
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+from types import ModuleType
+
+PURE_PYTHON_ENV = "HUMANOID_TWIN_PURE_PYTHON"
+PACKAGE = "humanoid_twin"
+# the module whose form tells which core runs: the clock drives every event of the twin
+PROBE_MODULE = "humanoid_twin.clock"
+
+
+def pure_python_requested() -> bool:
+    """True when the environment asks for the interpreted source (``HUMANOID_TWIN_PURE_PYTHON``
+    set to anything but empty or ``0``)."""
+    return os.environ.get(PURE_PYTHON_ENV, "") not in ("", "0")
+
+
+class _SourceFirstFinder:
+    """A meta path finder that loads ``humanoid_twin.*`` modules from their ``.py`` source even
+    when a compiled extension module of the same name is beside it."""
+
+    @classmethod
+    def find_spec(cls, name: str, path: Sequence[str] | None = None,
+                  target: ModuleType | None = None) -> importlib.machinery.ModuleSpec | None:
+        if not name.startswith(PACKAGE + ".") or path is None:
+            return None
+        leaf = name.rpartition(".")[2]
+        for folder in path:
+            source = Path(folder, leaf + ".py")
+            if source.is_file():
+                return importlib.util.spec_from_file_location(name, source)
+        return None
+
+
+def install_source_first() -> None:
+    """Put :class:`_SourceFirstFinder` first on ``sys.meta_path`` (once)."""
+    if not any(f is _SourceFirstFinder for f in sys.meta_path):
+        sys.meta_path.insert(0, _SourceFirstFinder)
+
+
+def is_compiled(module: ModuleType) -> bool:
+    """True when ``module`` was loaded from a compiled extension module."""
+    return isinstance(getattr(module, "__loader__", None), importlib.machinery.ExtensionFileLoader)
+
+
+def core_kind() -> str:
+    """``"compiled"`` when the core's modules run compiled, ``"python"`` when they run from
+    their source (no compiled modules installed, or ``HUMANOID_TWIN_PURE_PYTHON=1``)."""
+    import importlib
+
+    return "compiled" if is_compiled(importlib.import_module(PROBE_MODULE)) else "python"
+
+
+def compiled_modules() -> list[str]:
+    """The ``humanoid_twin`` modules loaded so far that run compiled."""
+    return sorted(n for n, m in list(sys.modules.items())
+                  if n.startswith(PACKAGE + ".") and m is not None and is_compiled(m))
