@@ -1,5 +1,6 @@
 """A real install (issue 11): the wheel built from this tree, installed (not editable) into a fresh
-venv, runs a scenario from another directory and writes a recording. The model and every data file
+venv, runs a scenario from another directory and writes a recording, on its compiled core; the
+same wheel built where no C compiler works installs too and runs the interpreted source. The model and every data file
 come from inside the installed package (importlib.resources), never from the source tree.
 
 The fresh venv gets its dependencies through pip as a user would (from the package index, or pip's
@@ -19,8 +20,11 @@ import pytest
 REPO = Path(__file__).resolve().parents[1]
 
 
-def _run(cmd: list[str], cwd: Path, timeout: float = 300) -> subprocess.CompletedProcess:
-    env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "VIRTUAL_ENV", "PYTHONHOME")}
+def _run(cmd: list[str], cwd: Path, timeout: float = 300,
+         env: dict[str, str] | None = None) -> subprocess.CompletedProcess:
+    env = {**{k: v for k, v in os.environ.items()
+              if k not in ("PYTHONPATH", "VIRTUAL_ENV", "PYTHONHOME", "HUMANOID_TWIN_PURE_PYTHON")},
+           **(env or {})}
     return subprocess.run(cmd, cwd=cwd, capture_output=True, text=True, timeout=timeout, env=env)
 
 
@@ -31,10 +35,10 @@ def test_the_wheel_installs_into_a_fresh_venv_and_runs_from_another_directory(tm
     # build from a copy of what the wheel is made of: setuptools writes build/ next to its sources
     src = tmp_path / "src"
     src.mkdir()
-    for name in ("pyproject.toml", "README.md"):
+    for name in ("pyproject.toml", "README.md", "setup.py"):
         shutil.copy2(REPO / name, src / name)
     shutil.copytree(REPO / "humanoid_twin", src / "humanoid_twin",
-                    ignore=shutil.ignore_patterns("__pycache__", "*.pyc"))
+                    ignore=shutil.ignore_patterns("__pycache__", "*.pyc", "*.so", "*.c"))
     wheels = tmp_path / "wheels"
     r = _run([*pip, "wheel", "-q", "--no-deps", "-w", str(wheels), str(src)], tmp_path)
     assert r.returncode == 0, r.stderr
@@ -51,6 +55,7 @@ def test_the_wheel_installs_into_a_fresh_venv_and_runs_from_another_directory(tm
     exe = str(bin_dir / "humanoid-twin")
     r = _run([exe, "--version"], work)
     assert r.returncode == 0 and r.stdout.startswith("humanoid-twin "), r.stderr
+    assert r.stdout.strip().endswith("(core: compiled)"), r.stdout       # the wheel carries the core
     r = _run([exe, "run", "stand", "--duration", "3", "--out", "stand.rrd", "--json", "--no-progress"], work)
     assert r.returncode == 0, r.stderr
     assert '"fell": false' in r.stdout.splitlines()[-1]
@@ -63,3 +68,19 @@ def test_the_wheel_installs_into_a_fresh_venv_and_runs_from_another_directory(tm
     assert r.returncode == 0, r.stderr
     for line in r.stdout.splitlines():
         assert line.startswith(str(env_dir)), r.stdout
+
+    # a machine without a C compiler: the same wheel build skips the compiled modules and the
+    # package installs and runs from its source, only slower
+    plain = tmp_path / "plain"
+    r = _run([*pip, "wheel", "-q", "--no-deps", "-w", str(plain), str(src)], tmp_path,
+             env={"CC": "false", "CXX": "false", "LDSHARED": "false"})
+    assert r.returncode == 0, r.stderr
+    (wheel,) = plain.glob("humanoid_twin-*.whl")
+    r = _run([str(bin_dir / "python"), "-m", "pip", "install", "-q", "--no-deps", "--force-reinstall",
+              str(wheel)], tmp_path)
+    assert r.returncode == 0, r.stderr
+    r = _run([exe, "--version"], work)
+    assert r.returncode == 0 and r.stdout.strip().endswith("(core: python)"), r.stdout + r.stderr
+    r = _run([exe, "run", "stand", "--duration", "2", "--out", "plain.rrd", "--json", "--no-progress"], work)
+    assert r.returncode == 0, r.stderr
+    assert '"fell": false' in r.stdout.splitlines()[-1]
