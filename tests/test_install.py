@@ -1,7 +1,8 @@
 """A real install (issue 11): the wheel built from this tree, installed (not editable) into a fresh
 venv, runs a scenario from another directory and writes a recording, on its compiled core; the
-same wheel built where no C compiler works installs too and runs the interpreted source. The model and every data file
-come from inside the installed package (importlib.resources), never from the source tree.
+same wheel built where no C compiler works installs too and runs the interpreted source. The
+model and every data file come from inside the installed package (importlib.resources), never
+from the source tree.
 
 The fresh venv gets its dependencies through pip as a user would (from the package index, or pip's
 cache when warm): about a minute, the suite's slowest test."""

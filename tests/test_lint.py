@@ -16,6 +16,6 @@ def test_ruff_is_clean():
     ruff = shutil.which("ruff") or str(Path(sys.executable).with_name("ruff"))
     if not Path(ruff).exists():
         pytest.fail("ruff is not installed: pip install -e '.[test]'")
-    r = subprocess.run([ruff, "check", "humanoid_twin", "tests", "scripts", "setup.py"], cwd=ROOT, capture_output=True,
-                       text=True, timeout=120)
+    r = subprocess.run([ruff, "check", "humanoid_twin", "tests", "scripts", "setup.py"], cwd=ROOT,
+                       capture_output=True, text=True, timeout=120)
     assert r.returncode == 0, r.stdout + r.stderr
