@@ -1,7 +1,7 @@
 """The twin's pty takes the settings serial libraries make, in any order (issue 27).
 
-A Linux pty keeps no parity bit, and the C library of Debian, Ubuntu and Fedora answers
-``EINVAL`` to a ``tcsetattr`` whose only effect would have been ``PARENB`` (docs/serve.md, "The
+A Linux pty keeps no parity bit, and the C library of Debian and Ubuntu answers ``EINVAL`` to a
+``tcsetattr`` whose only effect would have been ``PARENB`` (docs/serve.md, "The
 pty and parity"). These tests drive ``humanoid-twin serve``'s pty with raw termios calls made the
 way real clients make them, one setting per call (speed, parity, data bits, stop bits) or all at
 once, at open and again later in the same connection, with the short pause between two calls that
@@ -9,7 +9,7 @@ a program has; every call must be accepted and the test message must come back a
 
 - ``pyserial``: read the settings, rewrite them (clears ``INPCK``, ``CMSPAR``, sets the parity),
   write them back;
-- ``asio``: read-modify-write as Boost.Asio and Qt set a parity (``INPCK`` on, ``IGNPAR`` off);
+- ``asio``: read-modify-write as Boost.Asio sets a parity (``INPCK`` on, ``IGNPAR`` off);
 - ``octave``: the settings kept by the client from a clean slate and sent whole at every call, as
   Octave's instrument-control does (``c_iflag = 0``, ``c_cflag = CS8|CREAD|CLOCAL`` ...);
 - ``bare``: read-modify-write touching nothing but ``PARENB``/``PARODD`` (even parity only: an

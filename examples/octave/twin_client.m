@@ -18,8 +18,8 @@ function twin_client (port, api)
   % and prints one line for each. Any wrong answer is an error (exit status 1 under octave-cli).
   %
   % Only the port name differs from a real COM port, with one thing to know on Linux: a pty
-  % keeps no parity bit, and the C library of Debian, Ubuntu and Fedora refuses (EINVAL) a
-  % settings call that changes nothing else. So the port is opened first and its parity set
+  % keeps no parity bit, and the C library of Debian and Ubuntu refuses (EINVAL) a settings
+  % call that changes nothing else. So the port is opened first and its parity set
   % afterwards, in its own call (docs/serve.md, "Driving the twin from Octave or MATLAB").
 
   if nargin < 2

@@ -177,15 +177,16 @@ class PtyBridge(_Bridge):
     """A pty pair: the client opens ``port_name`` (``/dev/pts/N``); the bridge holds the master.
 
     **Parity on a Linux pty.** The pts driver keeps no parity bit (it clears ``PARENB`` and forces
-    ``CS8`` in every request), and the C library of Debian, Ubuntu and Fedora reads the settings
-    back after each ``tcsetattr`` and answers ``EINVAL`` when the call changed nothing while the
-    driver dropped ``PARENB`` (or a size CS6/CS7); the rest of the request *was* applied. So a
-    client's parity request is accepted only if it also changes something else. The bridge keeps
+    ``CS8`` in every request), and the C library of Debian and Ubuntu (a glibc patch; Fedora has a
+    similar one) reads the settings back after each ``tcsetattr`` and answers ``EINVAL`` when the
+    call changed nothing while the driver dropped ``PARENB`` (or a size CS6/CS7); the rest of the
+    request *was* applied. So a client's parity request is accepted only if it also changes
+    something else. The bridge keeps
     the pty *marked* with flags that mean nothing on a pty (no parity errors ever arrive), but
     that serial libraries rewrite whenever they set parity:
 
     - ``INPCK`` (pyserial clears it; Octave's instrument-control sends ``c_iflag = 0``),
-    - ``IGNPAR`` (Boost.Asio and Qt clear it when they enable parity, even or odd),
+    - ``IGNPAR`` (Boost.Asio clears it when it enables parity, even or odd),
     - ``PARODD`` (an even-parity request clears it),
 
     and, between clients, the speed ``IDLE_SPEED`` (38400: a client asking for 115200 changes
