@@ -181,9 +181,8 @@ class PtyBridge(_Bridge):
     similar one) reads the settings back after each ``tcsetattr`` and answers ``EINVAL`` when the
     call changed nothing while the driver dropped ``PARENB`` (or a size CS6/CS7); the rest of the
     request *was* applied. So a client's parity request is accepted only if it also changes
-    something else. The bridge keeps
-    the pty *marked* with flags that mean nothing on a pty (no parity errors ever arrive), but
-    that serial libraries rewrite whenever they set parity:
+    something else. The bridge keeps the pty *marked* with flags that mean nothing on a pty (no
+    parity error ever arrives), but that serial libraries rewrite whenever they set parity:
 
     - ``INPCK`` (pyserial clears it; Octave's instrument-control sends ``c_iflag = 0``),
     - ``IGNPAR`` (Boost.Asio clears it when it enables parity, even or odd),
@@ -192,8 +191,8 @@ class PtyBridge(_Bridge):
     and, between clients, the speed ``IDLE_SPEED`` (38400: a client asking for 115200 changes
     it). A client's request clears the marks it rewrites; once the client's settings have stayed
     unchanged for ``REARM_AFTER_S`` (seen by two polls), the bridge sets the marks again, so its
-    next parity request is accepted too. INPCK and IGNPAR together keep the line discipline's
-    fast raw path; the bytes are not changed.
+    next parity request is accepted too. The bytes are not changed (with ``IGNPAR`` set next to
+    ``INPCK``, the line discipline keeps its raw path).
 
     What no state of the pty can give (tests/test_pty_termios.py, docs/serve.md): the *same*
     request with parity sent twice within ``REARM_AFTER_S`` (the first one leaves the pty exactly
@@ -204,7 +203,8 @@ class PtyBridge(_Bridge):
 
     Writing the marks reads the client's settings and writes them back with the marks: a client
     ``tcsetattr`` landing between that read and that write (a few microseconds, at most once per
-    settings change of the client, never during its first ``REARM_AFTER_S``) would be undone.
+    settings change of the client, and only after it has left its settings alone for
+    ``REARM_AFTER_S``) would be undone.
     """
 
     # the slave's speed between clients: a client asking for another speed changes something
