@@ -308,8 +308,9 @@ class Supervisor:
         if len(cops) == 1:
             x, y = cops[0]
             return min(x - SENSOR_X_MIN, SENSOR_X_MAX - x, y - SENSOR_Y_MIN, SENSOR_Y_MAX - y)
-        front = max(SENSOR_Y_MAX - y for _, y in cops)
-        back = max(y - SENSOR_Y_MIN for _, y in cops)
+        ys = [y for _, y in cops]
+        front = max([SENSOR_Y_MAX - y for y in ys])
+        back = max([y - SENSOR_Y_MIN for y in ys])
         return min(front, back)
 
     def _check_balance(self, now: int) -> None:
