@@ -10,5 +10,6 @@ cpdef object check_scu(object scu, object what=*, object error=*)
 cpdef object node_error(object node, object what=*)
 cpdef str node_name(object node)
 cpdef object int_in_range(object name, object value, object lo, object hi, object what)
+cpdef str _span(object lo, object hi)
 cpdef long long s8(object value) except? -1
 cpdef long long from_s8(object byte) except? -1
