@@ -42,6 +42,7 @@ FOOT_BODIES: tuple[str, str] = ("r_foot", "l_foot")
 PAD_SUFFIXES: tuple[str, str, str, str] = ("fl", "fr", "rl", "rr")   # table 12 order
 TILT_MAX_DEG = 45.0                # the platform tilts at most this far (either way)
 _TILT_MAX_DEG = TILT_MAX_DEG
+WXYZ_TO_XYZW = [1, 2, 3, 0]        # MuJoCo's quaternion order (w, x, y, z) to (x, y, z, w)
 _TILT_PROFILE_CHUNK_US = 10_000    # a tilt profile is re-evaluated at least every 10 ms
 _NOISE_BLOCK = 8192
 _GEOM_TYPES = {int(v): k for k, v in {
@@ -744,8 +745,16 @@ class Plant:
     def body_poses(self) -> tuple[tuple[str, ...], np.ndarray, np.ndarray]:
         """Names, world positions (n, 3) and quaternions (n, 4, xyzw) of every body but the world."""
         self._sync()
+        pos, quat = self.body_pose_views()
+        return self._body_names, pos.copy(), quat[:, WXYZ_TO_XYZW]     # (an index array copies)
+
+    def body_pose_views(self) -> tuple[np.ndarray, np.ndarray]:
+        """Live views (no copy) of the world positions (n, 3) and quaternions (n, 4, MuJoCo's order
+        w x y z; ``[:, WXYZ_TO_XYZW]`` gives x y z w) of every body but the world, in
+        :meth:`body_poses` order: they follow the plant as it steps, so a caller copies them at
+        the instant it wants (with the plant synced to its clock: after :meth:`truth`, say)."""
         d = self.data
-        return self._body_names, d.xpos[1:].copy(), d.xquat[1:][:, [1, 2, 3, 0]].copy()
+        return d.xpos[1:], d.xquat[1:]
 
     def geometry(self) -> list[GeomInfo]:
         """The geoms to draw: visual geoms (group 2), force-sensor pads, platform and floor.
