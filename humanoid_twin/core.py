@@ -68,8 +68,9 @@ def core_kind() -> str:
 def stale_modules(pkg: Path | None = None) -> list[str]:
     """In a source tree (an editable install), the compiled modules older than their ``.py`` or
     ``.pxd``: an edit not yet rebuilt (``python scripts/build_core.py``), which the compiled module
-    would silently ignore. Empty for an installed wheel and for the interpreted source."""
-    pkg = Path(__file__).resolve().parent
+    would silently ignore. Empty for an installed wheel and for the interpreted source. ``pkg``:
+    the package's folder (default: this package's)."""
+    pkg = Path(__file__).resolve().parent if pkg is None else pkg
     if pure_python_requested() or not (pkg.parent / "setup.py").is_file():
         return []
     stale = []
