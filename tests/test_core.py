@@ -64,13 +64,10 @@ def test_pure_python_env_loads_every_module_from_its_source():
     assert r.returncode == 0 and r.stdout.strip().endswith("(core: python)"), r.stdout + r.stderr
 
 
-def test_pure_python_switch_reads_only_set_values():
+def test_pure_python_switch_reads_only_set_values(monkeypatch):
     for value, pure in (("1", True), ("yes", True), ("0", False), ("", False)):
-        os.environ[core.PURE_PYTHON_ENV] = value
-        try:
-            assert core.pure_python_requested() is pure, value
-        finally:
-            del os.environ[core.PURE_PYTHON_ENV]
+        monkeypatch.setenv(core.PURE_PYTHON_ENV, value)
+        assert core.pure_python_requested() is pure, value
 
 
 def test_this_process_core_matches_the_switch():
