@@ -27,8 +27,8 @@ def cli(*args: str, cwd: str | None = None) -> subprocess.CompletedProcess:
 def test_version():
     r = cli("--version")
     assert r.returncode == 0
-    name, version = r.stdout.split()
-    assert name == "humanoid-twin" and version[0].isdigit()
+    name, version, *core = r.stdout.split()
+    assert name == "humanoid-twin" and version[0].isdigit() and core[0] == "(core:"
 
 
 def test_run_help_explains_each_scenario_its_defaults_and_gives_examples():

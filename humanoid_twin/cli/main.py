@@ -141,8 +141,8 @@ def build_parser() -> argparse.ArgumentParser:
                      "the lateral axis to DEG (toes up positive)")
     run.add_argument("--seed", type=int, default=0, help="random seed (sensor noise, servo offsets, "
                      "board phases)")
-    run.add_argument("--json", action="store_true", help="print the summary as one JSON object on the "
-                     "last line of stdout")
+    run.add_argument("--json", action="store_true", help="print the summary as one JSON object, alone "
+                     "on stdout (instead of the table)")
     run.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
     run.add_argument("--viewer", action="store_true", help="watch the run live in MuJoCo's own viewer, "
                      "paced to real time (needs a display)")
@@ -262,6 +262,11 @@ def _check_run_inputs(args: argparse.Namespace) -> None:
         raise _usage_error(f"--no-record and --out {args.out} contradict each other: drop one")
     if args.duration is not None and args.duration > MAX_DURATION_S:
         raise _usage_error(f"--duration {args.duration:g}: at most {MAX_DURATION_S:g} simulated seconds")
+    from humanoid_twin.scenarios import BOOT_MIN_S
+
+    if args.duration is not None and args.duration < BOOT_MIN_S:
+        raise _usage_error(f"--duration {args.duration:g} is shorter than the boot (the Slaves calibrate for "
+                           f"{BOOT_MIN_S:g} s; the boot takes ~2.65 simulated seconds): give at least that")
     _check_seed_and_tilt(args)
     try:   # the planners' own limits (T fits one byte of 20 ms ticks, each joint's range ...)
         plan(args.scenario, T=args.T, motion=args.motion, perna=args.perna)
@@ -391,12 +396,32 @@ def _run(args: argparse.Namespace, outputs: _Outputs, out_tmp: Path | None, can_
     return EXIT_SUPERVISOR if summary.get("mode") in ("safe", "estop") else 0
 
 
-def _print_summary(summary: dict, as_json: bool) -> None:
+def _plain(value: object) -> str:
+    """A summary value as a person reads it: ``-`` for none, ``yes``/``no``, lists one item after
+    another (a dict as ``key=value`` pairs), no Python reprs."""
+    if value is None:
+        return "-"
+    if isinstance(value, bool):
+        return "yes" if value else "no"
+    if isinstance(value, dict):
+        return " ".join(f"{k}={_plain(v)}" for k, v in value.items())
+    if isinstance(value, list | tuple):
+        return "; ".join(_plain(v) for v in value) if value else "-"
+    return str(value)
+
+
+def summary_table(summary: dict) -> str:
+    """The human summary: one ``key  value`` line per key, plain values (docs/scenarios.md)."""
     width = max(len(k) for k in summary)
-    for key, value in summary.items():
-        print(f"{key:<{width}}  {value}")
+    return "".join(f"{key:<{width}}  {_plain(value)}\n" for key, value in summary.items())
+
+
+def _print_summary(summary: dict, as_json: bool) -> None:
+    """``--json``: the JSON object alone on stdout (for machines); otherwise the human table."""
     if as_json:
-        print(json.dumps(summary, sort_keys=False))
+        sys.stdout.write(json.dumps(summary, sort_keys=False) + "\n")
+    else:
+        sys.stdout.write(summary_table(summary))
     sys.stdout.flush()
 
 
