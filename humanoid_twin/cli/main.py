@@ -52,7 +52,7 @@ examples:
   humanoid-twin run stand --tilt 20 --json        tilt the platform 20 deg toes up; JSON summary
   humanoid-twin run flexao --viewer --no-record   watch it live in MuJoCo's viewer
   humanoid-twin serve --tcp 5000                  the robot's serial port on socket://127.0.0.1:5000
-  humanoid-twin sweep stand --param tilt=10,20,30 --out out/tilt.csv
+  humanoid-twin sweep stand --param tilt=10,20,30 --out tilt.csv
 
 more: the project's README.md and docs/ (docs/scenarios.md: what a run does, the summary's keys)"""
 
@@ -384,9 +384,14 @@ def _run(args: argparse.Namespace, outputs: _Outputs, out_tmp: Path | None, can_
             bar.close()
         if live is not None:
             live.close()
+    replaced = "out" in outputs.final and outputs.final["out"].exists()
     outputs.commit()
     if "out" in outputs.final:
         summary["recording"] = str(outputs.final["out"])
+        if args.out is None:      # the default name: say which file was written (and replaced)
+            sys.stderr.write(f"humanoid-twin: wrote {outputs.final['out']}"
+                             + (" (replacing the earlier one; --out FILE.rrd picks another)" if replaced else "")
+                             + "\n")
     if "can_log" in outputs.final:
         summary["can_log"] = str(outputs.final["can_log"])
     for fault in summary.get("law_faults", ()):
