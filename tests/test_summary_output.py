@@ -67,7 +67,7 @@ def test_outcome_words() -> None:
 
 
 def test_the_generated_blocks_of_the_docs_match_the_code() -> None:
-    r = subprocess.run([sys.executable, str(ROOT / "scripts" / "gen_docs.py"), "--check"], capture_output=True,
-                       text=True, timeout=60)
+    r = subprocess.run([sys.executable, str(ROOT / "scripts" / "gen_docs.py"), "--check"],
+                       capture_output=True, text=True, timeout=60)
     assert r.returncode == 0, f"run scripts/gen_docs.py: {r.stderr}"
     assert "| `slip_mm` |" in (ROOT / "docs" / "scenarios.md").read_text()

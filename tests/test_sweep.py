@@ -260,11 +260,13 @@ def test_two_parquet_sweeps_read_as_one_dataset_with_the_users_umask(tmp_path):
     write_table(tmp_path / "a.parquet", [{"tilt": 10, "seed": 0, "fell": False, "fell_at_s": None,
                                           "cop_margin_min_mm": 20.5, "error": ""}], cols)
     write_table(tmp_path / "b.parquet", [{"tilt": 2.5, "seed": 1, "fell": True, "fell_at_s": 5.5,
-                                          "cop_margin_min_mm": -1000.0, "host_error": "x", "error": ""}], cols)
+                                          "cop_margin_min_mm": -1000.0, "host_error": "x", "error": ""}],
+                cols)
     table = ds.dataset(tmp_path, format="parquet").to_table()
     assert sorted(table.column("tilt").to_pylist()) == [2.5, 10.0]
     assert str(table.schema.field("fell_at_s").type) == "double"
-    assert str(table.schema.field("seed").type) == "int64" and str(table.schema.field("host_error").type) == "string"
+    assert str(table.schema.field("seed").type) == "int64"
+    assert str(table.schema.field("host_error").type) == "string"
     old = os.umask(0o022)
     try:
         write_table(tmp_path / "c.csv", [{"tilt": 1}], ["tilt"])

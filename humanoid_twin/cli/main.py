@@ -390,7 +390,8 @@ def _run(args: argparse.Namespace, outputs: _Outputs, out_tmp: Path | None, can_
         summary["recording"] = str(outputs.final["out"])
         if args.out is None:      # the default name: say which file was written (and replaced)
             sys.stderr.write(f"humanoid-twin: wrote {outputs.final['out']}"
-                             + (" (replacing the earlier one; --out FILE.rrd picks another)" if replaced else "")
+                             + (" (replacing the earlier one; --out FILE.rrd picks another)"
+                                if replaced else "")
                              + "\n")
     if "can_log" in outputs.final:
         summary["can_log"] = str(outputs.final["can_log"])
