@@ -108,8 +108,8 @@ def test_view_web_on_a_busy_port_is_one_line_exit_2_and_no_url(tmp_path):
         busy.bind((LOOPBACK, 0))
         busy.listen(1)
         port = busy.getsockname()[1]
-        r = subprocess.run([sys.executable, "-m", "humanoid_twin.cli.main", "view", "--web", "--port", str(port),
-                            str(rrd)], capture_output=True, text=True, timeout=60)
+        r = subprocess.run([sys.executable, "-m", "humanoid_twin.cli.main", "view", "--web", "--port",
+                            str(port), str(rrd)], capture_output=True, text=True, timeout=60)
     assert r.returncode == 2 and r.stdout == ""
     assert r.stderr.count("\n") == 1 and f"--port {port}: in use" in r.stderr
 

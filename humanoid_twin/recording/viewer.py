@@ -16,7 +16,8 @@ import socket
 import subprocess
 import sys
 
-__all__ = ["LOOPBACK", "ViewerError", "check_port_free", "native_viewer_command", "web_viewer_command", "web_url", "view"]
+__all__ = ["LOOPBACK", "ViewerError", "check_port_free", "native_viewer_command", "web_viewer_command",
+           "web_url", "view"]
 
 LOOPBACK = "127.0.0.1"
 DEFAULT_WEB_PORT = 9090
@@ -63,8 +64,8 @@ def check_port_free(port: int, what: str) -> None:
         try:
             s.bind((LOOPBACK, port))
         except OSError as exc:
-            raise ViewerError(f"{what} {port}: in use on {LOOPBACK} ({exc.strerror or exc}; another viewer?): "
-                              "pick a free one with --port N") from None
+            raise ViewerError(f"{what} {port}: in use on {LOOPBACK} ({exc.strerror or exc}; another "
+                              "viewer?): pick a free one with --port N") from None
 
 
 def has_display() -> bool:
