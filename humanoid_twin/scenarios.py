@@ -108,6 +108,7 @@ class RunOptions:
     perna: int = 1
     out: Path | None = None
     can_log: Path | None = None
+    can_log_name: str | None = None     # the log's final file name, when can_log is a temporary one
     control: str | None = None
     tilt: float = 0.0
     seed: int = 0
@@ -336,7 +337,7 @@ def run(opts: RunOptions, on_progress: Callable[[float, float | None], None] | N
         if opts.can_log is not None:
             from humanoid_twin.recording import CanLog
 
-            canlog = CanLog(opts.can_log, twin.network)
+            canlog = CanLog(opts.can_log, twin.network, name=opts.can_log_name)
         monitor = Monitor(twin)
         if opts.monitor:
             monitor.attach()

@@ -336,7 +336,8 @@ def _run(args: argparse.Namespace, outputs: _Outputs, out_tmp: Path | None, can_
     opts = RunOptions(
         **controllers,
         scenario=args.scenario, duration=args.duration, T=args.T, motion=args.motion, perna=args.perna,
-        out=out_tmp, can_log=can_tmp, control=args.control, tilt=args.tilt, seed=args.seed,
+        out=out_tmp, can_log=can_tmp, can_log_name=None if args.can_log is None else args.can_log.name,
+        control=args.control, tilt=args.tilt, seed=args.seed,
         progress=not args.no_progress, can_interface=args.can_interface, can_channel=args.can_channel,
         faults=tuple(args.fault), supervisor=supervisor_config(args),
     )
