@@ -22,7 +22,13 @@ import signal
 import sys
 from pathlib import Path
 
-from humanoid_twin.cli.argtypes import degrees_90, non_negative_seconds, positive_seconds, tcp_port
+from humanoid_twin.cli.argtypes import (
+    degrees_90,
+    non_negative_seconds,
+    positive_seconds,
+    speed_factor,
+    tcp_port,
+)
 
 EXIT_USAGE = 2
 EXIT_SUPERVISOR = 3     # the run ended with the supervisor in safe or estop (docs/supervisor.md)
@@ -166,6 +172,8 @@ def build_parser() -> argparse.ArgumentParser:
     serve.add_argument("--idle-timeout", type=non_negative_seconds, default=600.0, metavar="S",
                        help="disconnect a TCP client that sent nothing for S wall seconds, so that a "
                        "silent client cannot hold the port (default 600; 0: never)")
+    serve.add_argument("--speed", type=speed_factor, default=1.0, metavar="X", help="run X times faster "
+                       "than real time (0.5: half as fast; default 1, as the robot); 0.01..100")
     serve.add_argument("--seed", type=int, default=0, help="random seed")
     serve.add_argument("--tilt", type=degrees_90, default=0.0, help="tilt the platform slowly to DEG")
     _add_can_options(serve)
@@ -453,7 +461,8 @@ def cmd_serve(args: argparse.Namespace) -> int:
         return serve(tcp_port=args.tcp, host=args.host, seed=args.seed, tilt=args.tilt,
                      can_interface=args.can_interface, can_channel=args.can_channel,
                      faults=tuple(args.fault), supervisor=supervisor_config(args),
-                     should_stop=lambda: stop["flag"], idle_timeout_s=args.idle_timeout or None)
+                     should_stop=lambda: stop["flag"], idle_timeout_s=args.idle_timeout or None,
+                     speed=args.speed)
     except ServeError as exc:
         raise _usage_error(str(exc)) from None
 
