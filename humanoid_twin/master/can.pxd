@@ -5,6 +5,13 @@ from humanoid_twin.bus.network cimport CanController
 from humanoid_twin.clock cimport Clock
 from humanoid_twin.master.candrivers cimport CanDrivers
 from humanoid_twin.master.database cimport Database, MasterCounters, ScuActuation, ScuSensors
+from humanoid_twin.protocol.canframes cimport (
+    control_byte,
+    pack_actuation1,
+    pack_actuation2,
+    unpack_sensors1,
+    unpack_sensors2,
+)
 
 # constants of the per-packet path as C values (imported here; nobody imports them from here)
 cdef long long MASTER_ADDRESS, OP_SENSORS, SFLAGS_SUPERVISOR, STD_ID_MAX

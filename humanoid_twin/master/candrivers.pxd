@@ -4,6 +4,7 @@
 cimport cython
 
 from humanoid_twin.bus.network cimport CanController
+from humanoid_twin.protocol.canframes cimport packet_index
 
 
 cdef class CanDrivers:

@@ -7,6 +7,7 @@ from humanoid_twin.bus.network cimport CanController
 from humanoid_twin.clock cimport Clock
 from humanoid_twin.master.can cimport MasterCan
 from humanoid_twin.master.database cimport Database, ScuSensors
+from humanoid_twin.slave.data cimport calcCoP
 
 
 cdef class Supervisor:
@@ -21,17 +22,17 @@ cdef class Supervisor:
     cdef public long long refused
     cdef public long long last_host_us
     cdef public set _seen
-    cdef public dict _packets
-    cdef public dict _quiet_rounds
+    cdef public list _packets
+    cdef public list _quiet_rounds
     cdef public long long _master_sent
-    cdef public dict _deadline_since
+    cdef public list _deadline_since
     cdef public object _balance_since
 
     cpdef tuple read(self)
     cpdef bint apply_allowed(self)
     cpdef host_frame(self)
     @cython.locals(now=cython.longlong, db=Database, ctl=CanController, master_down=bint, sent=cython.longlong,
-                   q=dict, k=cython.longlong, s=ScuSensors, n=cython.longlong)
+                   q=list, k=cython.longlong, s=ScuSensors, n=cython.longlong)
     cpdef on_round(self)
     @cython.locals(want=cython.longlong, s=ScuSensors)
     cpdef bint _all_ready(self, long long now)

@@ -31,9 +31,8 @@ from humanoid_twin.master.pic import ROUND_US
 from humanoid_twin.protocol.canframes import SFLAGS2_LAW, SFLAGS_CAN_STATE
 from humanoid_twin.protocol.rs232 import PARAM_SPECIAL, SUPERVISOR_FAULTS, SUPERVISOR_MODES, Op
 from humanoid_twin.protocol.wire import (
-    MASTER_ADDRESS,
+    NODES,
     POS_LIMIT_DEG,
-    SCUS,
     STATUS_CALIB,
     STATUS_DEADLINE,
     STATUS_PWM,
@@ -144,10 +143,12 @@ class Supervisor:
         self.refused = 0                      # APPLY requests answered FC by the supervisor
         self.last_host_us = 0
         self._seen: set[tuple[int, int]] = set()
-        self._packets = {k: 0 for k in SCUS}
-        self._quiet_rounds = {k: 0 for k in (MASTER_ADDRESS, *SCUS)}
+        # per node, indexed by its address (0 the Master, 1..8 the Slaves; the Master's
+        # _packets and _deadline_since entries are unused)
+        self._packets = [0] * len(NODES)
+        self._quiet_rounds = [0] * len(NODES)
         self._master_sent = 0
-        self._deadline_since: dict[int, int | None] = {k: None for k in SCUS}
+        self._deadline_since: list[int | None] = [None] * len(NODES)
         self._balance_since: int | None = None
 
     # -- what the host sees -----------------------------------------------------------------------
@@ -203,10 +204,8 @@ class Supervisor:
         """Reset: forget the latched faults and run a new self-check (from any mode)."""
         self.latched.clear()
         self._seen.clear()
-        for k in self._quiet_rounds:
-            self._quiet_rounds[k] = 0
-        for k in self._deadline_since:
-            self._deadline_since[k] = None
+        self._quiet_rounds[:] = [0] * len(NODES)
+        self._deadline_since[:] = [None] * len(NODES)
         self._balance_since = None
         self._set_mode(SELF_CHECK)
 
