@@ -39,6 +39,7 @@ from humanoid_twin.twin import Twin
 __all__ = ["Monitor", "SAMPLE_PERIOD_US"]
 
 SAMPLE_PERIOD_US = PWM_PERIOD_US      # one sample of the truth per PWM period (20 ms)
+SOLE_ON_SURFACE_MM = 5.0              # a sole origin this close to the platform stands on it (slip_mm)
 
 
 @dataclass
@@ -47,7 +48,7 @@ class Monitor:
 
     Attributes, updated while the twin runs: ``fell`` / ``fell_at_s`` (first sample that saw the
     robot fallen), ``trunk_tilt_max_deg``, ``slip_mm`` (the largest distance a sole moved along
-    the platform since the first sample), ``cop_margin_min_mm`` (``inf`` before the first
+    the platform while standing on it, since it was set down), ``cop_margin_min_mm`` (``inf`` before the first
     sample, ``-inf`` if nothing touched the platform at some sample), ``samples`` (number of
     truth samples) and ``last`` (the last :class:`GroundTruth` sampled, ``None`` before the
     first); property :attr:`cop_error_rms_mm`. Samples before ``start_s`` are ignored.
@@ -64,7 +65,7 @@ class Monitor:
     fell_at_s: float | None = None
     slip_mm: float = 0.0
     last: GroundTruth | None = field(default=None, repr=False)
-    _soles0: tuple | None = field(default=None, repr=False)
+    _soles0: list | None = field(default=None, repr=False)
 
     def attach(self) -> None:
         """Register on the twin's clock: the truth every 20 ms, and the CoP comparison of each
@@ -88,12 +89,22 @@ class Monitor:
         self.trunk_tilt_max_deg = max(self.trunk_tilt_max_deg, gt.trunk_tilt_deg)
         # -inf when nothing touches the platform (the robot is in the air or lying)
         self.cop_margin_min_mm = min(self.cop_margin_min_mm, gt.cop_margin_mm)
-        # how far a foot has slid on the platform since the first sample (its own frame)
+        # how far a foot standing on the platform has slid since it was set down (in the
+        # platform's frame): the first sample, or the first sample after it was lifted (more
+        # than SOLE_ON_SURFACE_MM above the surface: a step is not a slide)
         soles = twin.plant.soles_on_surface_mm()
-        if self._soles0 is None:
-            self._soles0 = soles
-        for (x, y), (x0, y0) in zip(soles, self._soles0, strict=True):
-            d = math.hypot(x - x0, y - y0)
+        ref = self._soles0
+        if ref is None:
+            ref = self._soles0 = [None] * len(soles)
+        for f, (x, y, h) in enumerate(soles):
+            if h >= SOLE_ON_SURFACE_MM:
+                ref[f] = None
+                continue
+            r = ref[f]
+            if r is None:
+                ref[f] = (x, y)
+                continue
+            d = math.hypot(x - r[0], y - r[1])
             if d > self.slip_mm:
                 self.slip_mm = d
 

@@ -444,7 +444,9 @@ def run(opts: RunOptions, on_progress: Callable[[float, float | None], None] | N
         twin.close()
 
 
-SLIP_HELD_MM = 5.0     # a foot that moved less than this along the platform held its place
+# a foot that moved less than this along the platform held its place: a foot rolling onto an edge
+# of its pads moves its sole origin a few mm without sliding (levantar_perna --perna 2: 7.1 mm)
+SLIP_HELD_MM = 10.0
 
 
 def outcome(fell: bool, slip_mm: float) -> str:
@@ -466,9 +468,11 @@ SUMMARY_KEYS: dict[str, str] = {
             "from both the vertical and the platform's normal (humanoid_twin/models/README.md section 9)",
     "fell_at_s": "the first sample that saw the robot fallen (none: it did not fall)",
     "trunk_tilt_max_deg": "largest angle between the trunk's z axis and the vertical",
-    "slip_mm": "the largest distance a sole moved along the platform's surface since the run began "
-               "(feet sliding down a tilted platform; not a fall)",
-    "outcome": "the run in one word: `fell`; `slid` (not fallen, but a foot slid 5 mm or more); `held`",
+    "slip_mm": "the largest distance a sole moved along the platform's surface while standing on it "
+               "(since the run began, or since that foot was last set down): feet sliding down a "
+               "tilted platform, not a fall",
+    "outcome": "the run in one word: `fell`; `slid` (not fallen, but `slip_mm` reached 10 mm: a foot "
+               "rolling onto an edge of its pads moves a few mm without sliding); `held`",
     "cop_margin_min_mm": "smallest signed distance of the ground-truth CoP (MuJoCo contact forces) inside "
                          "the support polygon (hull of the foot pads in contact), sampled every 20 ms; "
                          "negative when outside; **-1000** when at some sample no pad touched the "

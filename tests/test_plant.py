@@ -518,12 +518,13 @@ def test_feet_slid_down_a_tilted_platform_is_not_a_fall_and_is_measured_as_slip(
     assert tr.trunk_height_m < C.FELL_HEIGHT_M          # what the old, world-height test tripped on
     assert not tr.fell
     slid = p.soles_on_surface_mm()
-    for (x, y), (x0, y0) in zip(slid, soles0, strict=True):
+    for (x, y, h), (x0, y0, h0) in zip(slid, soles0, strict=True):
         assert x - x0 == pytest.approx(-400.0, abs=5.0) and y == pytest.approx(y0, abs=1.0)
+        assert h == pytest.approx(h0, abs=1.0) and abs(h0) < 5.0       # on the surface
     # tilting the platform under a robot that stays put on it moves no sole along the surface
     q = Plant()
     _place_robot_on_platform(q, 20.0, 0.0)
-    for (x, y), (x0, y0) in zip(q.soles_on_surface_mm(), soles0, strict=True):
+    for (x, y, _), (x0, y0, _) in zip(q.soles_on_surface_mm(), soles0, strict=True):
         assert math.hypot(x - x0, y - y0) < 1.0
 
 

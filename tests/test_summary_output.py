@@ -34,7 +34,7 @@ def test_json_prints_the_json_object_alone_on_stdout(stand_runs) -> None:
     summary = json.loads(r.stdout)        # the whole of stdout, as `| jq` and json.load read it
     assert list(summary) == [k for k in SUMMARY_KEYS if k in summary]   # every key documented, in order
     assert summary["control"] == "balance" and summary["control_law"] == "balance=JacobianLaw"
-    assert summary["outcome"] == "held" and summary["slip_mm"] < 5.0 and summary["fell"] is False
+    assert summary["outcome"] == "held" and summary["slip_mm"] < 10.0 and summary["fell"] is False
 
 
 def test_the_human_table_prints_plain_values(stand_runs) -> None:
@@ -63,7 +63,7 @@ def test_a_duration_shorter_than_the_boot_is_one_line(tmp_path: Path) -> None:
 
 
 def test_outcome_words() -> None:
-    assert (outcome(False, 0.3), outcome(False, 456.0), outcome(True, 456.0)) == ("held", "slid", "fell")
+    assert (outcome(False, 7.1), outcome(False, 456.0), outcome(True, 456.0)) == ("held", "slid", "fell")
 
 
 def test_the_generated_blocks_of_the_docs_match_the_code() -> None:

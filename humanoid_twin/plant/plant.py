@@ -703,17 +703,18 @@ class Plant:
         cos_n = -s * float(d.xmat[t, 2]) + c * float(d.xmat[t, 8])
         return math.degrees(math.acos(max(-1.0, min(1.0, cos_n)))) > C.FELL_TILT_DEG
 
-    def soles_on_surface_mm(self) -> tuple[tuple[float, float], tuple[float, float]]:
+    def soles_on_surface_mm(self) -> tuple[tuple[float, float, float], tuple[float, float, float]]:
         """Where each foot's sole origin is on the platform, in the platform's own frame (mm,
-        x forward along its surface, y left; ``FOOT_BODIES`` order): a foot sliding on the platform
-        moves here, a platform tilting under a still foot does not (``slip_mm`` of a run)."""
+        x forward along its surface, y left, and its height above the surface; ``FOOT_BODIES``
+        order): a foot sliding on the platform moves in x, y; a platform tilting under a still
+        foot does not move it (``slip_mm`` of a run)."""
         self._sync()
         s, c = math.sin(math.radians(self._tilt_deg)), math.cos(math.radians(self._tilt_deg))
         pos = self.data.site_xpos
         out = []
         for site in self._sole_sites.tolist():
             x, y, z = pos[site].tolist()
-            out.append(((c * x + s * z) * 1000.0, y * 1000.0))
+            out.append(((c * x + s * z) * 1000.0, y * 1000.0, (c * z - s * x) * 1000.0))
         return out[0], out[1]
 
     def _loaded_contacts(self, foot: int = -1) -> tuple[list[int], list[float], list[list[float]]]:
