@@ -8,3 +8,13 @@ __version__ = "0.1.0"
 if pure_python_requested():
     # the interpreted source even where the compiled core is installed (docs/architecture.md)
     install_source_first()
+
+
+def __getattr__(name: str) -> object:
+    """``from humanoid_twin import Twin``: the in-process twin, imported on first use (the package's
+    import stays light for the CLI)."""
+    if name == "Twin":
+        from humanoid_twin.twin import Twin
+
+        return Twin
+    raise AttributeError(f"module 'humanoid_twin' has no attribute {name!r}")

@@ -9,13 +9,15 @@ Public API (stable; ``scenarios.run``, the balance study and user controllers us
     mon.attach()                 # samples on the twin's clock from now on
     ...                          # run the twin (serial requests, twin.run_for, ...)
     mon.fell, mon.fell_at_s, mon.trunk_tilt_max_deg, mon.cop_margin_min_mm, mon.cop_error_rms_mm
+    mon.slip_mm                  # the largest distance a foot slid on the platform
     mon.last                     # the last sampled ``GroundTruth`` (CoP, support polygon, forces)
 
 What it measures (the plant's ground truth, never visible to the firmware or the host):
 
 - every 20 ms of virtual time (one PWM period, after the boards' ticks of that instant), the
-  plant's :class:`~humanoid_twin.plant.plant.GroundTruth`: ``fell`` (trunk tilt or height past
-  the fall limits, docs/model.md), the largest trunk tilt, and the smallest **CoP margin**: the
+  plant's :class:`~humanoid_twin.plant.plant.GroundTruth`: ``fell`` (trunk height above the
+  platform, or its attitude, past the fall limits, docs/model.md), the largest trunk tilt, how
+  far a foot slid along the platform (``slip_mm``), and the smallest **CoP margin**: the
   signed distance (mm) of the whole robot's centre of pressure inside the convex hull of the
   foot pads touching the platform (negative outside it; ``-inf`` while nothing touches);
 - right after each leg board's own tick, the distance between the CoP that board computed from
@@ -37,6 +39,7 @@ from humanoid_twin.twin import Twin
 __all__ = ["Monitor", "SAMPLE_PERIOD_US"]
 
 SAMPLE_PERIOD_US = PWM_PERIOD_US      # one sample of the truth per PWM period (20 ms)
+SOLE_ON_SURFACE_MM = 5.0              # a sole origin this close to the platform stands on it (slip_mm)
 
 
 @dataclass
@@ -44,7 +47,8 @@ class Monitor:
     """Samples the ground truth every 20 ms of virtual time: ``Monitor(twin, start_s=0.0)``.
 
     Attributes, updated while the twin runs: ``fell`` / ``fell_at_s`` (first sample that saw the
-    robot fallen), ``trunk_tilt_max_deg``, ``cop_margin_min_mm`` (``inf`` before the first
+    robot fallen), ``trunk_tilt_max_deg``, ``slip_mm`` (the largest distance a sole moved along
+    the platform while standing on it, since it was set down), ``cop_margin_min_mm`` (``inf`` before the first
     sample, ``-inf`` if nothing touched the platform at some sample), ``samples`` (number of
     truth samples) and ``last`` (the last :class:`GroundTruth` sampled, ``None`` before the
     first); property :attr:`cop_error_rms_mm`. Samples before ``start_s`` are ignored.
@@ -59,7 +63,9 @@ class Monitor:
     _cop_err_n: int = 0
     samples: int = 0
     fell_at_s: float | None = None
+    slip_mm: float = 0.0
     last: GroundTruth | None = field(default=None, repr=False)
+    _soles0: list | None = field(default=None, repr=False)
 
     def attach(self) -> None:
         """Register on the twin's clock: the truth every 20 ms, and the CoP comparison of each
@@ -83,6 +89,24 @@ class Monitor:
         self.trunk_tilt_max_deg = max(self.trunk_tilt_max_deg, gt.trunk_tilt_deg)
         # -inf when nothing touches the platform (the robot is in the air or lying)
         self.cop_margin_min_mm = min(self.cop_margin_min_mm, gt.cop_margin_mm)
+        # how far a foot standing on the platform has slid since it was set down (in the
+        # platform's frame): the first sample, or the first sample after it was lifted (more
+        # than SOLE_ON_SURFACE_MM above the surface: a step is not a slide)
+        soles = twin.plant.soles_on_surface_mm()
+        ref = self._soles0
+        if ref is None:
+            ref = self._soles0 = [None] * len(soles)
+        for f, (x, y, h) in enumerate(soles):
+            if h >= SOLE_ON_SURFACE_MM:
+                ref[f] = None
+                continue
+            r = ref[f]
+            if r is None:
+                ref[f] = (x, y)
+                continue
+            d = math.hypot(x - r[0], y - r[1])
+            if d > self.slip_mm:
+                self.slip_mm = d
 
     def compare_cop(self, scu: int, foot: str) -> None:
         """Firmware CoP of board ``scu`` (computed at its tick, just now) vs the contact CoP."""

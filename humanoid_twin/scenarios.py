@@ -49,6 +49,9 @@ from humanoid_twin.twin import Twin
 
 CONTROL_CHOICES: dict[str, int] = {t.label: t for t in ControlType}   # run --control
 BOOT_TIMEOUT_S = 5.0
+# the boot cannot end sooner: the Slaves' calibration waits 100 PWM periods, then averages 25
+# (seed 000 SERVO ``calibration``); a --duration below it is refused before the run starts
+BOOT_MIN_S = (100 + 25) * 0.020
 TILT_RATE_DEG_S = 1.0       # "the floor platform tilts slowly": 1 degree per second
 SETTLE_S = 2.0
 
@@ -105,6 +108,7 @@ class RunOptions:
     perna: int = 1
     out: Path | None = None
     can_log: Path | None = None
+    can_log_name: str | None = None     # the log's final file name, when can_log is a temporary one
     control: str | None = None
     tilt: float = 0.0
     seed: int = 0
@@ -128,6 +132,7 @@ class RunOptions:
 
 
 _BALANCE_TYPES = (ControlType.REACTION_CONTROL, ControlType.BALANCE_CONTROL)
+FOOT_SCUS = (1, 2)      # the leg boards (foot lateral, foot front, knee): the summary's ``control``
 
 
 @dataclass
@@ -332,7 +337,7 @@ def run(opts: RunOptions, on_progress: Callable[[float, float | None], None] | N
         if opts.can_log is not None:
             from humanoid_twin.recording import CanLog
 
-            canlog = CanLog(opts.can_log, twin.network)
+            canlog = CanLog(opts.can_log, twin.network, name=opts.can_log_name)
         monitor = Monitor(twin)
         if opts.monitor:
             monitor.attach()
@@ -405,6 +410,8 @@ def run(opts: RunOptions, on_progress: Callable[[float, float | None], None] | N
             "fell": monitor.fell,
             "fell_at_s": monitor.fell_at_s,
             "trunk_tilt_max_deg": round(monitor.trunk_tilt_max_deg, 3),
+            "slip_mm": round(monitor.slip_mm, 1),
+            "outcome": outcome(monitor.fell, monitor.slip_mm),
             "cop_margin_min_mm": _finite(monitor.cop_margin_min_mm),
             "cop_error_rms_mm": _round(monitor.cop_error_rms_mm),
             "wall_s": round(wall, 3),
@@ -414,7 +421,8 @@ def run(opts: RunOptions, on_progress: Callable[[float, float | None], None] | N
             "boot_s": round(boot_s, 3),
             "completed": completed,
             "tilt_deg": opts.tilt,
-            "control": opts.control,
+            "control": _control_label(the_plan),
+            "control_law": _law_label(twin, the_plan),
             "seed": opts.seed,
             "mode": sup.mode_name,
             "faults": [f.as_dict() for f in sup.faults],
@@ -436,6 +444,102 @@ def run(opts: RunOptions, on_progress: Callable[[float, float | None], None] | N
         twin.close()
 
 
+# a foot that moved less than this along the platform held its place: a foot rolling onto an edge
+# of its pads moves its sole origin a few mm without sliding (levantar_perna --perna 2: 7.1 mm)
+SLIP_HELD_MM = 10.0
+
+
+def outcome(fell: bool, slip_mm: float) -> str:
+    """The run in one word: ``fell`` (the plant's fall test, against the platform), ``slid`` (did
+    not fall, but a foot moved ``SLIP_HELD_MM`` or more along the platform), or ``held``."""
+    if fell:
+        return "fell"
+    return "slid" if slip_mm >= SLIP_HELD_MM else "held"
+
+
+# Every key a run's summary may hold, in the order the summary gives them, with what it means:
+# docs/scenarios.md's table is generated from this (scripts/gen_docs.py; a test fails when they
+# drift, another when a run's summary holds a key that is not here).
+SUMMARY_KEYS: dict[str, str] = {
+    "scenario": "the scenario run",
+    "duration_s": "simulated seconds run (boot included)",
+    "fell": "the plant's fall test at any 20 ms sample, against the platform the feet stand on: the "
+            "trunk origin less than 0.12 m above the platform's plane, or the trunk more than 45 deg "
+            "from both the vertical and the platform's normal (humanoid_twin/models/README.md section 9)",
+    "fell_at_s": "the first sample that saw the robot fallen (none: it did not fall)",
+    "trunk_tilt_max_deg": "largest angle between the trunk's z axis and the vertical",
+    "slip_mm": "the largest distance a sole moved along the platform's surface while standing on it "
+               "(since the run began, or since that foot was last set down): feet sliding down a "
+               "tilted platform, not a fall",
+    "outcome": "the run in one word: `fell`; `slid` (not fallen, but `slip_mm` reached 10 mm: a foot "
+               "rolling onto an edge of its pads moves a few mm without sliding); `held`",
+    "cop_margin_min_mm": "smallest signed distance of the ground-truth CoP (MuJoCo contact forces) inside "
+                         "the support polygon (hull of the foot pads in contact), sampled every 20 ms; "
+                         "negative when outside; **-1000** when at some sample no pad touched the "
+                         "platform (the robot in the air or lying)",
+    "cop_error_rms_mm": "RMS distance between each leg board's firmware CoP (`calcCoP`, 7-bit forces, "
+                        "integer mm) and the contact-force CoP of its foot, compared right after the "
+                        "board's own 20 ms tick, while the foot is loaded and the board calibrated",
+    "wall_s": "wall time of the run (simulation, host and recording)",
+    "rtf": "real-time factor: simulated / wall seconds",
+    "can_frames": "frames on the CAN wire",
+    "serial_frames": "RS-232 requests the Master received",
+    "boot_s": "when the boot ended (virtual seconds)",
+    "completed": "false when `--duration` cut the motion before its end, else true",
+    "tilt_deg": "the platform's tilt asked for (`--tilt`)",
+    "control": "the control type(s) the leg boards (SCU 1-2) ran, `+` between them: the scenario's "
+               "own (`stand`: `balance`) or `--control`'s",
+    "control_law": "the law that ran each of those types on the leg boards, `type=Class` (built-in), "
+                   "or `type=module:Class` (a `--law` plug-in, docs/controllers.md)",
+    "seed": "the run's seed",
+    "mode": "the Master supervisor's mode at the end (`ready`; `safe` or `estop`: exit code 3; "
+            "docs/supervisor.md)",
+    "faults": "the faults the supervisor latched: name, node, time, detail each",
+    "injected": "the `--fault` specs injected (docs/supervisor.md)",
+    "host_error": "only when a host request failed while the supervisor was stopped or faults were "
+                  "injected: that request's error (the run went on)",
+    "law_faults": "only when a control law raised or returned a bad value: which law, board, time "
+                  "and why (the board fell back to holding; docs/controllers.md)",
+    "host_controller_calls": "only with `--host-controller`: how many times its `step` was called",
+    "recording": "the `.rrd` written (the CLI)",
+    "can_log": "the CAN log written (the CLI)",
+}
+
+
+def summary_keys_markdown() -> str:
+    """docs/scenarios.md's table of the summary's keys, from :data:`SUMMARY_KEYS`."""
+    lines = ["| key | meaning |", "|---|---|"]
+    lines += [f"| `{key}` | {meaning} |" for key, meaning in SUMMARY_KEYS.items()]
+    return "\n".join(lines) + "\n"
+
+
+def _leg_control_types(the_plan: Plan) -> list[ControlType]:
+    """The control types the leg boards (SCU 1, 2) run over the plan's motions, in type order."""
+    types = {int(v) for v in np.asarray(the_plan.k)[[scu - 1 for scu in FOOT_SCUS], :, :, 3].ravel()}
+    return [ControlType(t) for t in sorted(types)]
+
+
+def _control_label(the_plan: Plan) -> str:
+    """``control`` of the summary: the leg boards' control types, ``+`` between them (``stand``:
+    ``balance``, the scenario's default; ``--control`` replaces them)."""
+    return "+".join(t.label for t in _leg_control_types(the_plan))
+
+
+def _law_label(twin: Twin, the_plan: Plan) -> str:
+    """``control_law`` of the summary: which law class ran each of those types on the leg boards
+    (``balance=JacobianLaw``; a ``--law`` plug-in by its module and class)."""
+    servo = twin.slaves[FOOT_SCUS[0]].servo
+    parts = []
+    for t in _leg_control_types(the_plan):
+        law = servo.law(int(t))
+        cls = type(law)
+        name = cls.__qualname__
+        if cls.__module__ != "humanoid_twin.slave.laws":
+            name = f"{cls.__module__}:{name}"
+        parts.append(f"{t.label}={name}")
+    return " ".join(parts)
+
+
 def _round(x: float | None) -> float | None:
     return None if x is None else round(x, 3)
 
@@ -451,6 +555,7 @@ def _finite(x: float) -> float | None:
     return round(max(x, NO_SUPPORT_MARGIN_MM), 3)
 
 
-__all__ = ["RunOptions", "Monitor", "Plan", "Scenario", "REGISTRY", "scenario", "get_scenario", "boot",
+__all__ = ["RunOptions", "outcome", "SLIP_HELD_MM", "SUMMARY_KEYS", "summary_keys_markdown",
+           "Monitor", "Plan", "Scenario", "REGISTRY", "scenario", "get_scenario", "boot",
            "hold", "BootError", "ScenarioError", "ScenarioInputError", "SCENARIOS", "CONTROL_CHOICES", "plan",
            "run", "tilt_profile"]

@@ -43,6 +43,7 @@ def serve(
     supervisor: SupervisorConfig | None = None,
     idle_timeout_s: float | None = DEFAULT_IDLE_TIMEOUT_S,
     log: Callable[[str], None] = _log,
+    speed: float = 1.0,
 ) -> int:
     """Serve until ``should_stop()`` (or ``max_seconds`` of wall time); returns an exit code.
 
@@ -74,8 +75,9 @@ def serve(
             twin.plant.set_tilt_profile(tilt_profile(tilt, 0.0))
         print(bridge.port_name, flush=True)
         idle = f"idle timeout {idle_timeout_s:g} s" if idle_timeout_s else "no idle timeout"
-        log(f"serving on {bridge.port_name}: one client at a time, {idle}")
-        pacer = RealTimePacer(twin.clock)
+        pace = "" if speed == 1.0 else f", {speed:g}x real time"
+        log(f"serving on {bridge.port_name}: one client at a time, {idle}{pace}")
+        pacer = RealTimePacer(twin.clock, speed=speed)     # --speed: virtual seconds per wall second
         pacer.start()
         wall0 = time.monotonic()
         lag_warned = False

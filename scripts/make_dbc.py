@@ -31,6 +31,11 @@ from humanoid_twin.protocol.wire import SCUS, ControlType, ErrorState  # noqa: E
 
 DBC_PATH = REPO / "humanoid_twin" / "protocol" / cf.DBC_RESOURCE
 
+# The Master's time-triggered schedule (seed 000 section 2, docs/master.md): 1 ms per Slave, each
+# Slave's two actuation packets once per 8 ms round, its two sensor packets answering them; the
+# DBC's GenMsgCycleTime of every message
+CYCLE_MS = 8
+
 # Section names as in seed 002 slide 19 ("Right Leg" ...), from the boards' names.
 SECTIONS = {k: SCU_NAMES[k].replace("_", " ").title() for k in SCUS}
 
@@ -231,6 +236,7 @@ def messages_for(k: int) -> list[Message]:
             8,
             act1,
             senders=["MASTER"],
+            cycle_time=CYCLE_MS,
             comment=f"Actuation 1 (index 0), Master -> slave {k} ({section})",
         ),
         Message(
@@ -239,6 +245,7 @@ def messages_for(k: int) -> list[Message]:
             8,
             act2,
             senders=["MASTER"],
+            cycle_time=CYCLE_MS,
             comment=f"Actuation 2 (index 1), Master -> slave {k} ({section})",
         ),
         Message(
@@ -247,6 +254,7 @@ def messages_for(k: int) -> list[Message]:
             8,
             sen1,
             senders=[scu],
+            cycle_time=CYCLE_MS,
             comment=f"Sensors 1 (index 0), slave {k} ({section}) -> Master",
         ),
         Message(
@@ -255,6 +263,7 @@ def messages_for(k: int) -> list[Message]:
             8,
             sen2,
             senders=[scu],
+            cycle_time=CYCLE_MS,
             comment=f"Sensors 2 (index 1), slave {k} ({section}) -> Master",
         ),
     ]

@@ -2,19 +2,16 @@
 """Reproduce ``docs/img/rerun_view.png`` and ``docs/img/rerun_web.png``: the rerun viewer,
 native and web, showing a recorded flexao run with the default blueprint.
 
-Native: records ``humanoid-twin run flexao`` into a temporary ``.rrd``, starts rerun's own
-headless viewer (``rerun --headless``, rerun-sdk 0.41; it renders offscreen through wgpu, so no
-screen is needed, only a Vulkan driver: on a machine without a GPU, Mesa's lavapipe), opens the
-recording, pauses the time cursor in the middle of the squat and asks the viewer for a
-screenshot (``rerun.experimental.ViewerClient``). Web: serves the same file with
-``humanoid-twin view --web`` and photographs the page in headless Chromium. Everything listens on
-127.0.0.1 only and is stopped at the end. (Known limit: on a 2-core container without a GPU,
-Debian's Chromium 156 leaves rerun's web viewer at "Loading Application Bundle... 100%": the wasm
-loads, the renderer never starts. Tried: --disable-gpu; --use-gl=angle --use-angle=swiftshader
---enable-unsafe-swiftshader --ignore-gpu-blocklist; --headless and --headless=new; 60-90 s waits
-and --virtual-time-budget. The native shot is the one kept in docs/img/; the web viewer itself is
-tested by `view --web` answering HTTP 200 on loopback.) PNGs are reduced to a 256-colour palette with Pillow
-when it is installed.
+Native: records ``humanoid-twin run flexao`` into a temporary ``.rrd``, starts rerun's own headless
+viewer (``rerun --headless``, rerun-sdk 0.41; it renders offscreen through wgpu, so no screen is
+needed, only a Vulkan driver: on a machine without a GPU, Mesa's lavapipe), opens the recording,
+pauses the time cursor in the middle of the squat and asks the viewer for a screenshot
+(``rerun.experimental.ViewerClient``). Web: serves the same file with ``humanoid-twin view --web``
+and photographs the page in headless Chromium. Everything listens on 127.0.0.1 only and is stopped
+at the end. (On a machine without WebGPU, headless Chromium with SwiftShader among them, rerun's web
+viewer stays at "Loading ... 100%" with its default renderer; `view --web` prints a URL with
+`&renderer=webgl`, which renders there: that is the URL photographed.) PNGs are reduced to a
+256-colour palette with Pillow when it is installed.
 
 What it needs (Debian/Ubuntu, as root)::
 

@@ -267,3 +267,26 @@ def test_serve_keeps_real_time(serve):
         serve.stop(proc)
     err = proc.stderr.read()
     assert "behind real time" not in err, err
+
+
+BOOT_CLIENT = """
+import json, sys, time
+from humanoid_twin.host import initcom, killcom, power_on
+H, _ = initcom(sys.argv[1])
+t0 = time.monotonic()
+power_on(H, timeout=30)   # the Slaves calibrate: ~2.65 s of the twin's time (wall timeout)
+print(json.dumps({"wall_s": time.monotonic() - t0}))
+killcom(H)
+"""
+
+
+def test_serve_speed_slows_the_twin_down(serve):
+    """Issue 25: `serve --speed X` paces the twin at X times real time (the pacer supported it, the
+    CLI did not). At 0.5 the 2.65 s boot takes at least 5.3 s of wall time (at 1x: 2.7 s)."""
+    proc, port = serve("--tcp", "0", "--speed", "0.5")
+    try:
+        out = _client(BOOT_CLIENT, port, timeout=60)
+    finally:
+        serve.stop(proc)
+    assert out["wall_s"] >= 2.65 / 0.5 - 0.1
+    assert "0.5x real time" in proc.stderr.read()

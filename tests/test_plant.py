@@ -529,3 +529,51 @@ def test_body_pose_views_follow_the_plant(standing) -> None:
     _, pos2, quat2 = p.body_poses()
     assert np.array_equal(vpos, pos2) and np.array_equal(vquat[:, [1, 2, 3, 0]], quat2)
     assert not np.array_equal(pos, pos2)                        # body_poses copies, the views follow
+
+
+def _place_robot_on_platform(p: Plant, tilt_deg: float, along_m: float, lying: bool = False) -> None:
+    """Tilt the platform and put the robot (keyframe posture) ``along_m`` along its surface (negative:
+    down the slope of a toes-up tilt), turned with the platform (feet flat on it), or lying on it."""
+    import mujoco
+
+    p.set_tilt_deg(tilt_deg)
+    th = math.radians(tilt_deg)
+    d = p.data
+    x0, z0 = float(d.qpos[0]), float(d.qpos[2])
+    half = -th / 2                 # the platform's own rotation (toes up = about -y)
+    if lying:      # trunk along the surface (its z axis down the slope), 5 cm above it
+        x0, z0 = 0.0, 0.05
+        half = -(th + math.pi / 2) / 2
+    d.qpos[3:7] = (math.cos(half), 0.0, math.sin(half), 0.0)
+    # the point (x0, z0) of the level platform's frame, carried onto the tilted one and moved along it
+    d.qpos[0] = (x0 + along_m) * math.cos(th) - z0 * math.sin(th)
+    d.qpos[2] = (x0 + along_m) * math.sin(th) + z0 * math.cos(th)
+    d.qvel[:] = 0
+    mujoco.mj_forward(p.model, d)
+
+
+def test_feet_slid_down_a_tilted_platform_is_not_a_fall_and_is_measured_as_slip() -> None:
+    """Issue 25: the fall test compared the trunk's height above the *world* floor with 0.12 m, so a
+    robot standing upright whose feet had slid 0.4 m down a 30 deg platform was 'fallen'."""
+    p = Plant()
+    soles0 = p.soles_on_surface_mm()
+    _place_robot_on_platform(p, 30.0, -0.4)
+    tr = p.truth()
+    assert tr.trunk_height_m < C.FELL_HEIGHT_M          # what the old, world-height test tripped on
+    assert not tr.fell
+    slid = p.soles_on_surface_mm()
+    for (x, y, h), (x0, y0, h0) in zip(slid, soles0, strict=True):
+        assert x - x0 == pytest.approx(-400.0, abs=5.0) and y == pytest.approx(y0, abs=1.0)
+        assert h == pytest.approx(h0, abs=1.0) and abs(h0) < 5.0       # on the surface
+    # tilting the platform under a robot that stays put on it moves no sole along the surface
+    q = Plant()
+    _place_robot_on_platform(q, 20.0, 0.0)
+    for (x, y, _), (x0, y0, _) in zip(q.soles_on_surface_mm(), soles0, strict=True):
+        assert math.hypot(x - x0, y - y0) < 1.0
+
+
+def test_a_robot_lying_on_a_tilted_platform_has_fallen() -> None:
+    p = Plant()
+    _place_robot_on_platform(p, 30.0, 0.0, lying=True)
+    tr = p.truth()
+    assert tr.fell and tr.trunk_tilt_deg == pytest.approx(120.0)    # lying along it, head down the slope

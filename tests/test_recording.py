@@ -506,10 +506,38 @@ def test_columns_have_rerun_s_own_arrow_types(run, tmp_path):
     assert ours == ref
 
 
-def test_can_log_txt_has_one_line_per_frame(tmp_path):
-    """``.txt`` (python-can's Printer) has no reader: count its lines against the frames."""
-    path = tmp_path / "bus.txt"
-    with Twin(seed=0) as twin, CanLog(path, twin.network) as log:
+def test_can_log_txt_is_refused_before_anything_is_written(tmp_path, twin):
+    """Issue 25: ``.txt`` (python-can's Printer) could be written but not read back: refused."""
+    with pytest.raises(CanLogError, match="cannot read it back"):
+        CanLog(tmp_path / "bus.txt", twin.network)
+    assert not (tmp_path / "bus.txt").exists()
+
+
+def test_trc_header_names_the_file_not_a_temporary_absolute_path(tmp_path):
+    path = tmp_path / ".partial-1-bus.trc"
+    with Twin(seed=0) as twin, CanLog(path, twin.network, name="bus.trc"):
+        twin.run_for(0.02)
+    text = path.read_text()
+    assert "bus.trc" in text and str(tmp_path) not in text and ".partial" not in text
+
+
+def test_a_converted_log_keeps_the_virtual_times(tmp_path):
+    """python-can's logconvert shifts ASC/BLF times by the first frame's; convert_can_log does not."""
+    from humanoid_twin.recording.can_log import convert_can_log
+
+    with Twin(seed=0) as twin:
         twin.run_for(0.05)
-    lines = path.read_text().splitlines()
-    assert len(lines) == log.frames > 0
+        with CanLog(tmp_path / "bus.db", twin.network):    # the log starts 50 ms into the run
+            twin.run_for(0.05)
+    src = read_can_log(tmp_path / "bus.db")
+    assert src[0].timestamp > 0.04
+    for suffix in (".asc", ".blf"):
+        assert convert_can_log(tmp_path / "bus.db", tmp_path / f"bus{suffix}") == len(src)
+        back = read_can_log(tmp_path / f"bus{suffix}")
+        assert [m.timestamp for m in back] == pytest.approx([m.timestamp for m in src], abs=1e-6)
+
+
+def test_the_dbc_gives_every_frame_its_8_ms_cycle():
+    from humanoid_twin.protocol.canframes import load_dbc
+
+    assert {m.cycle_time for m in load_dbc().messages} == {8}

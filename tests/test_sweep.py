@@ -84,7 +84,7 @@ def test_a_failing_point_is_a_row_with_its_error(tmp_path, capsys):
     # no such SocketCAN interface here (or no SocketCAN at all): that run fails, the other works
     rc, stdout, _ = _sweep(["--param", "can-interface=virtual,socketcan", "--can-channel", "nosuch0",
                             "--duration", "3", "--out", str(out)], capsys)
-    assert rc == 0 and "2 runs, 1 failed" in stdout
+    assert rc == 101 and "2 runs, 1 failed" in stdout     # 100 + the number of failed runs
     ok, bad = _rows(out)
     assert ok["can-interface"] == "virtual" and ok["error"] == "" and ok["fell"] == "False"
     assert bad["can-interface"] == "socketcan" and bad["error"].startswith("RuntimeError: exit 2")
@@ -177,7 +177,7 @@ def test_a_run_past_the_timeout_is_a_row_with_its_error(tmp_path, capsys):
     out = tmp_path / "slow.csv"
     rc, stdout, _ = _sweep(["--param", "tilt=0", "--duration", "30", "--timeout", "0.5", "--out", str(out)],
                            capsys)
-    assert rc == 0 and "1 runs, 1 failed" in stdout
+    assert rc == 101 and "1 runs, 1 failed" in stdout
     (row,) = _rows(out)
     assert row == {"tilt": "0", "seed": "0", "error": "RuntimeError: timeout: the run took more than 0.5 s"}
 
@@ -205,3 +205,71 @@ def test_sigterm_keeps_the_finished_runs_and_a_rerun_resumes(tmp_path):
     rerun = subprocess.run(argv, capture_output=True, text=True, timeout=120)
     assert rerun.returncode == 0 and f"{len(done)} of 3 runs already in" in rerun.stderr
     assert _rows(out)[:len(done)] == done and len(_rows(out)) == 3
+
+
+def _listening(pids: set[int]) -> set[str]:
+    import psutil
+
+    return {c.laddr.ip for c in psutil.net_connections(kind="inet")
+            if c.status == psutil.CONN_LISTEN and c.pid in pids}
+
+
+def test_a_local_ray_listens_on_loopback_only(tmp_path):
+    """Issue 25: a local Ray (no --address) opened its GCS, raylet and worker ports on the machine's
+    network address; every other server of the project binds loopback."""
+    pytest.importorskip("ray")
+    psutil = pytest.importorskip("psutil")
+    from humanoid_twin.sweep.engine import _ray
+
+    rows = _ray(vars, grid({"x": [1, 2]}), 1, None)     # a task the workers can import: vars(point)
+    first = next(rows)         # Ray is up (started by this process) while the generator is open
+    me = psutil.Process()
+    pids = {p.pid for p in me.children(recursive=True)} | {me.pid}
+    addresses = _listening(pids)
+    rest = list(rows)          # the generator ends: Ray is shut down
+    assert first["error"] == "" and len(rest) == 1
+    assert addresses, "found no listening socket of the local Ray"
+    assert addresses <= {"127.0.0.1", "::ffff:127.0.0.1", "::1"}, addresses
+
+
+def test_a_failed_run_keeps_its_whole_error(monkeypatch):
+    """Issue 25: only the last stderr line of a failed run was kept (a traceback lost its cause)."""
+    from humanoid_twin.sweep import engine
+
+    trace = "Traceback (most recent call last):\n  File \"x.py\", line 1, in f\nValueError: boom\n"
+    monkeypatch.setattr(engine.subprocess, "run",
+                        lambda argv, **kw: subprocess.CompletedProcess(argv, 1, "", trace))
+    row = engine.run_point(engine.RunCli("stand"), Point(0, (("tilt", "0"),)))
+    assert row["error"] == ('RuntimeError: exit 1: Traceback (most recent call last): | File "x.py", line 1, '
+                            'in f | ValueError: boom')
+
+
+def test_sweep_exit_codes_count_the_failed_runs():
+    from humanoid_twin.sweep.cli import exit_code
+
+    assert [exit_code(n) for n in (0, 1, 2, 99, 500)] == [0, 101, 102, 199, 199]
+
+
+def test_two_parquet_sweeps_read_as_one_dataset_with_the_users_umask(tmp_path):
+    """Issue 25: a column empty in one sweep was Arrow null, an int parameter int64 in one sweep and
+    double in another: the folder did not read as one dataset; the tables were created 0600."""
+    ds = pytest.importorskip("pyarrow.dataset")
+    from humanoid_twin.sweep.table import write_table
+
+    cols = ["tilt", "seed", "fell", "fell_at_s", "cop_margin_min_mm", "host_error", "error"]
+    write_table(tmp_path / "a.parquet", [{"tilt": 10, "seed": 0, "fell": False, "fell_at_s": None,
+                                          "cop_margin_min_mm": 20.5, "error": ""}], cols)
+    write_table(tmp_path / "b.parquet", [{"tilt": 2.5, "seed": 1, "fell": True, "fell_at_s": 5.5,
+                                          "cop_margin_min_mm": -1000.0, "host_error": "x", "error": ""}],
+                cols)
+    table = ds.dataset(tmp_path, format="parquet").to_table()
+    assert sorted(table.column("tilt").to_pylist()) == [2.5, 10.0]
+    assert str(table.schema.field("fell_at_s").type) == "double"
+    assert str(table.schema.field("seed").type) == "int64"
+    assert str(table.schema.field("host_error").type) == "string"
+    old = os.umask(0o022)
+    try:
+        write_table(tmp_path / "c.csv", [{"tilt": 1}], ["tilt"])
+    finally:
+        os.umask(old)
+    assert {oct((tmp_path / n).stat().st_mode & 0o777) for n in ("c.csv",)} == {"0o644"}

@@ -97,3 +97,26 @@ def test_native_view_binds_loopback_and_needs_a_display(tmp_path):
     assert r.returncode == 2
     assert "view --web" in r.stderr and "Traceback" not in r.stderr
     assert len(r.stderr.strip().splitlines()) == 1
+
+
+def test_view_web_on_a_busy_port_is_one_line_exit_2_and_no_url(tmp_path):
+    """Issue 25: on a busy port `view --web` printed a URL that pointed at the other viewer, then
+    exited 1."""
+    rrd = tmp_path / "x.rrd"
+    _tiny_rrd(rrd)
+    with socket.socket() as busy:
+        busy.bind((LOOPBACK, 0))
+        busy.listen(1)
+        port = busy.getsockname()[1]
+        r = subprocess.run([sys.executable, "-m", "humanoid_twin.cli.main", "view", "--web", "--port",
+                            str(port), str(rrd)], capture_output=True, text=True, timeout=60)
+    assert r.returncode == 2 and r.stdout == ""
+    assert r.stderr.count("\n") == 1 and f"--port {port}: in use" in r.stderr
+
+
+def test_the_web_url_asks_for_webgl() -> None:
+    """Where WebGPU is missing (headless Chromium, no GPU) rerun's viewer stays at 'Loading';
+    the printed URL asks for its WebGL renderer, which renders there."""
+    from humanoid_twin.recording.viewer import web_url
+
+    assert web_url(9090, 9876).endswith("&renderer=webgl")

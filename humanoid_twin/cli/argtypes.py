@@ -38,3 +38,5 @@ degrees_90 = checked(float, "a number of degrees", lambda v: abs(v) <= 90,
                      "must be within -90..90 degrees")
 tcp_port = checked(int, "a port number", lambda v: 0 <= v <= 65535, "a TCP port is 0..65535")
 count = checked(int, "a whole number", lambda v: v >= 1, "must be at least 1")
+speed_factor = checked(float, "a speed factor", lambda v: 0.01 <= v <= 100,
+                       "must be 0.01..100 (times real time)")

@@ -22,7 +22,13 @@ import signal
 import sys
 from pathlib import Path
 
-from humanoid_twin.cli.argtypes import degrees_90, non_negative_seconds, positive_seconds, tcp_port
+from humanoid_twin.cli.argtypes import (
+    degrees_90,
+    non_negative_seconds,
+    positive_seconds,
+    speed_factor,
+    tcp_port,
+)
 
 EXIT_USAGE = 2
 EXIT_SUPERVISOR = 3     # the run ended with the supervisor in safe or estop (docs/supervisor.md)
@@ -52,7 +58,7 @@ examples:
   humanoid-twin run stand --tilt 20 --json        tilt the platform 20 deg toes up; JSON summary
   humanoid-twin run flexao --viewer --no-record   watch it live in MuJoCo's viewer
   humanoid-twin serve --tcp 5000                  the robot's serial port on socket://127.0.0.1:5000
-  humanoid-twin sweep stand --param tilt=10,20,30 --out out/tilt.csv
+  humanoid-twin sweep stand --param tilt=10,20,30 --out tilt.csv
 
 more: the project's README.md and docs/ (docs/scenarios.md: what a run does, the summary's keys)"""
 
@@ -141,8 +147,8 @@ def build_parser() -> argparse.ArgumentParser:
                      "the lateral axis to DEG (toes up positive)")
     run.add_argument("--seed", type=int, default=0, help="random seed (sensor noise, servo offsets, "
                      "board phases)")
-    run.add_argument("--json", action="store_true", help="print the summary as one JSON object on the "
-                     "last line of stdout")
+    run.add_argument("--json", action="store_true", help="print the summary as one JSON object, alone "
+                     "on stdout (instead of the table)")
     run.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
     run.add_argument("--viewer", action="store_true", help="watch the run live in MuJoCo's own viewer, "
                      "paced to real time (needs a display)")
@@ -166,6 +172,8 @@ def build_parser() -> argparse.ArgumentParser:
     serve.add_argument("--idle-timeout", type=non_negative_seconds, default=600.0, metavar="S",
                        help="disconnect a TCP client that sent nothing for S wall seconds, so that a "
                        "silent client cannot hold the port (default 600; 0: never)")
+    serve.add_argument("--speed", type=speed_factor, default=1.0, metavar="X", help="run X times faster "
+                       "than real time (0.5: half as fast; default 1, as the robot); 0.01..100")
     serve.add_argument("--seed", type=int, default=0, help="random seed")
     serve.add_argument("--tilt", type=degrees_90, default=0.0, help="tilt the platform slowly to DEG")
     _add_can_options(serve)
@@ -262,6 +270,11 @@ def _check_run_inputs(args: argparse.Namespace) -> None:
         raise _usage_error(f"--no-record and --out {args.out} contradict each other: drop one")
     if args.duration is not None and args.duration > MAX_DURATION_S:
         raise _usage_error(f"--duration {args.duration:g}: at most {MAX_DURATION_S:g} simulated seconds")
+    from humanoid_twin.scenarios import BOOT_MIN_S
+
+    if args.duration is not None and args.duration < BOOT_MIN_S:
+        raise _usage_error(f"--duration {args.duration:g} is shorter than the boot (the Slaves calibrate for "
+                           f"{BOOT_MIN_S:g} s; the boot takes ~2.65 simulated seconds): give at least that")
     _check_seed_and_tilt(args)
     try:   # the planners' own limits (T fits one byte of 20 ms ticks, each joint's range ...)
         plan(args.scenario, T=args.T, motion=args.motion, perna=args.perna)
@@ -331,7 +344,8 @@ def _run(args: argparse.Namespace, outputs: _Outputs, out_tmp: Path | None, can_
     opts = RunOptions(
         **controllers,
         scenario=args.scenario, duration=args.duration, T=args.T, motion=args.motion, perna=args.perna,
-        out=out_tmp, can_log=can_tmp, control=args.control, tilt=args.tilt, seed=args.seed,
+        out=out_tmp, can_log=can_tmp, can_log_name=None if args.can_log is None else args.can_log.name,
+        control=args.control, tilt=args.tilt, seed=args.seed,
         progress=not args.no_progress, can_interface=args.can_interface, can_channel=args.can_channel,
         faults=tuple(args.fault), supervisor=supervisor_config(args),
     )
@@ -379,9 +393,15 @@ def _run(args: argparse.Namespace, outputs: _Outputs, out_tmp: Path | None, can_
             bar.close()
         if live is not None:
             live.close()
+    replaced = "out" in outputs.final and outputs.final["out"].exists()
     outputs.commit()
     if "out" in outputs.final:
         summary["recording"] = str(outputs.final["out"])
+        if args.out is None:      # the default name: say which file was written (and replaced)
+            sys.stderr.write(f"humanoid-twin: wrote {outputs.final['out']}"
+                             + (" (replacing the earlier one; --out FILE.rrd picks another)"
+                                if replaced else "")
+                             + "\n")
     if "can_log" in outputs.final:
         summary["can_log"] = str(outputs.final["can_log"])
     for fault in summary.get("law_faults", ()):
@@ -391,12 +411,32 @@ def _run(args: argparse.Namespace, outputs: _Outputs, out_tmp: Path | None, can_
     return EXIT_SUPERVISOR if summary.get("mode") in ("safe", "estop") else 0
 
 
-def _print_summary(summary: dict, as_json: bool) -> None:
+def _plain(value: object) -> str:
+    """A summary value as a person reads it: ``-`` for none, ``yes``/``no``, lists one item after
+    another (a dict as ``key=value`` pairs), no Python reprs."""
+    if value is None:
+        return "-"
+    if isinstance(value, bool):
+        return "yes" if value else "no"
+    if isinstance(value, dict):
+        return " ".join(f"{k}={_plain(v)}" for k, v in value.items())
+    if isinstance(value, list | tuple):
+        return "; ".join(_plain(v) for v in value) if value else "-"
+    return str(value)
+
+
+def summary_table(summary: dict) -> str:
+    """The human summary: one ``key  value`` line per key, plain values (docs/scenarios.md)."""
     width = max(len(k) for k in summary)
-    for key, value in summary.items():
-        print(f"{key:<{width}}  {value}")
+    return "".join(f"{key:<{width}}  {_plain(value)}\n" for key, value in summary.items())
+
+
+def _print_summary(summary: dict, as_json: bool) -> None:
+    """``--json``: the JSON object alone on stdout (for machines); otherwise the human table."""
     if as_json:
-        print(json.dumps(summary, sort_keys=False))
+        sys.stdout.write(json.dumps(summary, sort_keys=False) + "\n")
+    else:
+        sys.stdout.write(summary_table(summary))
     sys.stdout.flush()
 
 
@@ -421,7 +461,8 @@ def cmd_serve(args: argparse.Namespace) -> int:
         return serve(tcp_port=args.tcp, host=args.host, seed=args.seed, tilt=args.tilt,
                      can_interface=args.can_interface, can_channel=args.can_channel,
                      faults=tuple(args.fault), supervisor=supervisor_config(args),
-                     should_stop=lambda: stop["flag"], idle_timeout_s=args.idle_timeout or None)
+                     should_stop=lambda: stop["flag"], idle_timeout_s=args.idle_timeout or None,
+                     speed=args.speed)
     except ServeError as exc:
         raise _usage_error(str(exc)) from None
 

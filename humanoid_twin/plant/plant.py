@@ -676,6 +676,7 @@ class Plant:
         # the trunk z axis' vertical component: element (2, 2) of the trunk's rotation matrix
         tilt = math.degrees(math.acos(max(-1.0, min(1.0, float(d.xmat[self._trunk, 8])))))
         height = float(d.xpos[self._trunk, 2])
+        fell = self._fallen(tilt)
 
         pids, fns, pts = self._loaded_contacts()
         pad_f = [0.0] * 8
@@ -706,8 +707,40 @@ class Plant:
             return (com, dict(zip(self._joint_names, (qpos * _DEG_PER_RAD).tolist(), strict=True)),
                     PlainTruth(pad_f, cops, cop_xy, hull))
 
-        return GroundTruth(self.t_us / US_PER_S, tilt, height, margin, total,
-                           tilt > C.FELL_TILT_DEG or height < C.FELL_HEIGHT_M, derive)
+        return GroundTruth(self.t_us / US_PER_S, tilt, height, margin, total, fell, derive)
+
+    # --- the support surface (the platform's top face, tilted or not) ------------------------------
+    def _fallen(self, tilt_deg: float) -> bool:
+        """The fall test against the surface the feet stand on (humanoid_twin/models/README.md,
+        section 9): the trunk origin less than ``FELL_HEIGHT_M`` above the platform's plane (along
+        its normal), or the trunk more than ``FELL_TILT_DEG`` from the vertical *and* from the
+        platform's normal. A robot upright on a tilted platform, or whose feet slide down it, has
+        not fallen."""
+        d = self.data
+        s, c = math.sin(math.radians(self._tilt_deg)), math.cos(math.radians(self._tilt_deg))
+        t = self._trunk
+        # the platform's normal is (-sin, 0, cos) (toes up positive); its top face passes through 0
+        height = -s * float(d.xpos[t, 0]) + c * float(d.xpos[t, 2])
+        if height < C.FELL_HEIGHT_M:
+            return True
+        if tilt_deg <= C.FELL_TILT_DEG:
+            return False
+        cos_n = -s * float(d.xmat[t, 2]) + c * float(d.xmat[t, 8])
+        return math.degrees(math.acos(max(-1.0, min(1.0, cos_n)))) > C.FELL_TILT_DEG
+
+    def soles_on_surface_mm(self) -> tuple[tuple[float, float, float], tuple[float, float, float]]:
+        """Where each foot's sole origin is on the platform, in the platform's own frame (mm,
+        x forward along its surface, y left, and its height above the surface; ``FOOT_BODIES``
+        order): a foot sliding on the platform moves in x, y; a platform tilting under a still
+        foot does not move it (``slip_mm`` of a run)."""
+        self._sync()
+        s, c = math.sin(math.radians(self._tilt_deg)), math.cos(math.radians(self._tilt_deg))
+        pos = self.data.site_xpos
+        out = []
+        for site in self._sole_sites:
+            x, y, z = pos[site].tolist()
+            out.append(((c * x + s * z) * 1000.0, y * 1000.0, (c * z - s * x) * 1000.0))
+        return out[0], out[1]
 
     def _loaded_contacts(self, foot: int = -1) -> tuple[list[int], list[float], list[list[float]]]:
         """Pad/ground contacts pressing on the pads (of foot index ``foot``, or of both): pad

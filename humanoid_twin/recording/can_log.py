@@ -1,7 +1,8 @@
 """CAN traffic of the twin in python-can's standard log formats, and a DBC decoder for them.
 
 ``CanLog(path, network)`` opens a python-can writer (``can.Logger``: the format follows the
-suffix, ``.asc .blf .csv .log .trc .txt .db``, optionally ``.gz``) and attaches it to the
+suffix, ``.asc .blf .csv .log .trc .db .mf4``, optionally ``.gz``; ``.txt``, which python-can
+writes but cannot read, is refused) and attaches it to the
 twin's :class:`~humanoid_twin.bus.CanNetwork` with ``network.add_listener``: every frame that
 completed on the wire is written with its *virtual* timestamp (seconds of simulated time).
 Errors (unknown suffix, a format whose optional dependency is missing, an unwritable path) are
@@ -36,6 +37,7 @@ __all__ = [
     "check_log_path",
     "read_can_log",
     "decode_can_log",
+    "convert_can_log",
     "log_suffix",
 ]
 
@@ -80,6 +82,12 @@ def check_log_path(path: str | pathlib.Path) -> str:
         raise CanLogError(
             f"CAN log {str(p)!r}: unknown format {suffix or '(no suffix)'!r}; "
             f"python-can writes {', '.join(known)} (optionally + .gz)"
+        )
+    if suffix not in _reader_suffixes():
+        readable = sorted(set(known) & set(_reader_suffixes()))
+        raise CanLogError(
+            f"CAN log {str(p)!r}: python-can writes {suffix!r} but cannot read it back; "
+            f"use one of {', '.join(readable)}"
         )
     if suffix == ".mf4":
         try:
@@ -128,7 +136,7 @@ class CanLog:
     twin's clock started).
     """
 
-    def __init__(self, path: str | pathlib.Path, network: Any) -> None:
+    def __init__(self, path: str | pathlib.Path, network: Any, name: str | None = None) -> None:
         self.path = pathlib.Path(path)
         suffix = check_log_path(self.path)
         if not hasattr(network, "add_listener"):
@@ -145,6 +153,10 @@ class CanLog:
             # These writers store times relative to their first event: anchor that at virtual
             # time 0 so the file holds the twin's virtual times, not "since the first frame".
             writer.log_event("humanoid-twin: timestamps are virtual seconds of the twin's clock", 0.0)
+        if isinstance(writer, can.TRCWriter):
+            # its header names the file by its absolute path: the file's own name instead (``name``:
+            # the final one, when ``path`` is a temporary file renamed at the end)
+            writer.filepath = pathlib.PurePath(name or self.path.name).name
         self._writer = writer
         self._tap = _Tap(writer)
         self._closed = False
@@ -210,6 +222,27 @@ def read_can_log(path: str | pathlib.Path) -> list[can.Message]:
     # ASC: the default relative timestamps are the virtual times (CanLog anchors the file at 0)
     with can.LogReader(p) as reader:
         return list(reader)
+
+
+def convert_can_log(src: str | pathlib.Path, dst: str | pathlib.Path) -> int:
+    """Convert a CAN log to another python-can format (by suffix) keeping the twin's virtual times:
+    python-can's own ``can.logconvert`` writes ASC and BLF times relative to the first frame (every
+    time shifted by it); this anchors them at 0, as :class:`CanLog` does. Returns the frames
+    written; :class:`CanLogError` for a format that cannot be read or written."""
+    frames = read_can_log(src)
+    dst = pathlib.Path(dst)
+    check_log_path(dst)
+    writer = can.Logger(dst)
+    try:
+        if isinstance(writer, (can.ASCWriter, can.BLFWriter)):
+            writer.log_event("humanoid-twin: timestamps are virtual seconds of the twin's clock", 0.0)
+        if isinstance(writer, can.TRCWriter):
+            writer.filepath = dst.name
+        for msg in frames:
+            writer.on_message_received(msg)
+    finally:
+        writer.stop()
+    return len(frames)
 
 
 class DecodedFrame(NamedTuple):

@@ -16,7 +16,8 @@ import socket
 import subprocess
 import sys
 
-__all__ = ["LOOPBACK", "ViewerError", "native_viewer_command", "web_viewer_command", "web_url", "view"]
+__all__ = ["LOOPBACK", "ViewerError", "check_port_free", "native_viewer_command", "web_viewer_command",
+           "web_url", "view"]
 
 LOOPBACK = "127.0.0.1"
 DEFAULT_WEB_PORT = 9090
@@ -49,9 +50,22 @@ def web_viewer_command(path: str | pathlib.Path, web_port: int = DEFAULT_WEB_POR
 
 
 def web_url(web_port: int = DEFAULT_WEB_PORT, grpc_port: int = DEFAULT_GRPC_PORT) -> str:
-    """The URL that opens the served recording in a browser."""
+    """The URL that opens the served recording in a browser. It asks for rerun's WebGL renderer:
+    the viewer's default, WebGPU, is missing in many browsers and on machines without a GPU
+    (headless Chromium with SwiftShader stays at "Loading ... 100%"), where WebGL renders."""
     proxy = f"rerun%2Bhttp%3A%2F%2F{LOOPBACK}%3A{grpc_port}%2Fproxy"
-    return f"http://{LOOPBACK}:{web_port}/?url={proxy}"
+    return f"http://{LOOPBACK}:{web_port}/?url={proxy}&renderer=webgl"
+
+
+def check_port_free(port: int, what: str) -> None:
+    """:class:`ViewerError` (one line) when TCP ``port`` is taken on 127.0.0.1: checked before a
+    URL is printed, so that a busy port never prints a URL that would open another viewer."""
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
+        try:
+            s.bind((LOOPBACK, port))
+        except OSError as exc:
+            raise ViewerError(f"{what} {port}: in use on {LOOPBACK} ({exc.strerror or exc}; another "
+                              "viewer?): pick a free one with --port N") from None
 
 
 def has_display() -> bool:
@@ -73,8 +87,11 @@ def view(path: str | pathlib.Path, *, web: bool = False, web_port: int = DEFAULT
     """Run the viewer on ``path`` until it exits; its exit code. With ``web`` the URL is printed
     on stdout first (Ctrl-C stops the server); ``grpc_port`` None: a free loopback port."""
     if web:
+        check_port_free(web_port, "--port")
         if grpc_port is None:
             grpc_port = free_loopback_port()
+        else:
+            check_port_free(grpc_port, "gRPC port")
         print(f"rerun web viewer: {web_url(web_port, grpc_port)}  (Ctrl-C to stop)", flush=True)
         cmd = web_viewer_command(path, web_port, grpc_port)
     else:

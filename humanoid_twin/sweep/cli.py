@@ -179,10 +179,22 @@ def sweep_command(args: argparse.Namespace, parser: argparse.ArgumentParser) -> 
     if args.plot is not None:
         from humanoid_twin.sweep.plot import plot_sweep
 
+        title = f"sweep {args.scenario}: {args.metric} against {args.x}"
         try:
-            plot_sweep(rows, args.x, args.metric, args.plot, list(params) + ["seed"])
+            plot_sweep(rows, args.x, args.metric, args.plot, list(params) + ["seed"], title=title)
         except SweepError as exc:
             sys.stderr.write(f"humanoid-twin: error: {exc}\n")
             return 2
         print(f"{args.plot}: {args.metric} against {args.x}")
-    return 0
+    return exit_code(failed)
+
+
+EXIT_FAILED_BASE = 100     # a sweep with failed runs exits 100 + their number (199: 99 or more)
+
+
+def exit_code(failed: int) -> int:
+    """The sweep's exit code (docs/sweeps.md): 0 when every run worked, else 100 + the number of
+    runs whose row has an error, at most 199; their errors are in the table's ``error`` column."""
+    if failed:
+        sys.stderr.write(f"humanoid-twin: {failed} run(s) failed: see the error column of the table\n")
+    return EXIT_FAILED_BASE + min(failed, 99) if failed else 0

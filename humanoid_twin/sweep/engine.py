@@ -117,8 +117,9 @@ class RunCli:
                 return json.loads(lines[-1])
             except json.JSONDecodeError:
                 pass
-        err = [ln for ln in proc.stderr.splitlines() if ln.strip()]
-        raise RuntimeError(f"exit {proc.returncode}: {err[-1].strip() if err else 'no message'}")
+        # the whole of stderr (a traceback's every line), one line per cell: lines joined by " | "
+        err = [ln.strip() for ln in proc.stderr.splitlines() if ln.strip()]
+        raise RuntimeError(f"exit {proc.returncode}: {' | '.join(err) if err else 'no message'}")
 
 
 def run_point(task: Task, point: Point) -> dict[str, Any]:
@@ -211,6 +212,22 @@ def _local(task: Task, points: list[Point], jobs: int) -> Iterable[dict[str, Any
                 yield row
 
 
+LOOPBACK = "127.0.0.1"
+
+
+def _loopback_ray() -> dict[str, Any]:
+    """What keeps a local Ray (no ``--address``) on the loopback interface, as every other server
+    of the project: Ray binds its GCS, raylet and workers to the node's network address unless
+    told that this is not a cluster (its ``RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER=0``, read by Ray's
+    own processes, which inherit it) and given 127.0.0.1 as the node's address. Returns the
+    ``ray.init`` arguments."""
+    os.environ["RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER"] = "0"
+    from ray._private import ray_constants
+
+    ray_constants.ENABLE_RAY_CLUSTER = False      # read at its import: this process may have it
+    return {"_node_ip_address": LOOPBACK, "dashboard_host": LOOPBACK}
+
+
 def _ray(task: Task, points: list[Point], jobs: int | None, address: str | None
          ) -> Iterable[dict[str, Any]]:
     """One Ray task (1 CPU) per run; ``address`` joins a cluster, None starts a local Ray."""
@@ -222,6 +239,7 @@ def _ray(task: Task, points: list[Point], jobs: int | None, address: str | None
                                   "logging_level": "ERROR"}
         if address is None:
             kwargs["num_cpus"] = jobs or os.cpu_count() or 1
+            kwargs.update(_loopback_ray())
         ray.init(address=address, **kwargs)
         started = True
     try:

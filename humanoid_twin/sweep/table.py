@@ -55,6 +55,54 @@ def read_table(path: Path) -> list[dict[str, Any]]:
         return list(csv.DictReader(f))
 
 
+# columns whose values are whole numbers in every sweep; every other number is a float, so that
+# two sweeps (tilt=10,20 and tilt=2.5) have one type per column and read as one dataset
+INT_COLUMNS = frozenset({"seed", "can_frames", "serial_frames", "host_controller_calls", "perna"})
+_FLOAT_SUFFIXES = ("_s", "_mm", "_deg", "_n")
+_FLOAT_COLUMNS = frozenset({"rtf", "tilt", "T", "motion", "duration"})
+
+
+def _column_type(pa: Any, name: str, values: list[Any]) -> Any:
+    present = [v for v in values if v is not None]
+    if name in INT_COLUMNS and all(isinstance(v, int) and not isinstance(v, bool) for v in present):
+        return pa.int64()
+    if present and all(isinstance(v, bool) for v in present):
+        return pa.bool_()
+    if present and all(isinstance(v, int | float) and not isinstance(v, bool) for v in present):
+        return pa.float64()
+    if not present and (name in _FLOAT_COLUMNS or name.endswith(_FLOAT_SUFFIXES)):
+        return pa.float64()      # a column empty in this sweep (fell_at_s: nothing fell) keeps its type
+    if not present and name in ("fell", "completed"):
+        return pa.bool_()
+    return pa.string()
+
+
+def parquet_schema(rows: list[dict[str, Any]], columns: list[str]) -> Any:
+    """The Parquet schema of a sweep table: one fixed type per column, never Arrow ``null`` (an
+    empty column takes the type its name says), ints only for :data:`INT_COLUMNS`, other numbers
+    as float64, text for the rest (docs/sweeps.md)."""
+    pa = _pyarrow()
+    fields = []
+    for c in columns:
+        kind = _column_type(pa, c, [r.get(c) for r in rows])
+        fields.append(pa.field(c, kind))
+        if kind == pa.float64():
+            for r in rows:
+                if isinstance(r.get(c), int):
+                    r[c] = float(r[c])
+        elif kind == pa.string():
+            for r in rows:
+                if r.get(c) is not None and not isinstance(r[c], str):
+                    r[c] = str(r[c])
+    return pa.schema(fields)
+
+
+def _umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
+
+
 def _csv_text(value: Any) -> str:
     return "" if value is None else str(value)
 
@@ -70,7 +118,8 @@ def write_table(path: Path, rows: list[dict[str, Any]], columns: list[str]) -> N
             import pyarrow.parquet as pq
 
             full = [{c: row.get(c) for c in columns} for row in rows]
-            table = pa.Table.from_pylist(full) if full else pa.table({c: [] for c in columns})
+            schema = parquet_schema(full, columns)
+            table = pa.Table.from_pylist(full, schema=schema) if full else schema.empty_table()
             pq.write_table(table, tmp)
         else:
             with os.fdopen(fd, "w", newline="") as f:
@@ -80,6 +129,7 @@ def write_table(path: Path, rows: list[dict[str, Any]], columns: list[str]) -> N
                     w.writerow([_csv_text(row.get(c)) for c in columns])
                 f.flush()
                 os.fsync(f.fileno())
+        os.chmod(tmp, 0o666 & ~_umask())      # like the other outputs (mkstemp makes 0600)
         os.replace(tmp, path)
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
