@@ -13,6 +13,16 @@ cimport cython
 from humanoid_twin.clock cimport Clock
 from humanoid_twin.bus.foreign cimport ForeignPath
 from humanoid_twin.bus.twin_bus cimport RxPort
+# the frame length, computed in C on every call (cheaper than the lru_cache the interpreted
+# source puts in front of it under this name: frames.py)
+from humanoid_twin.bus.frames cimport _frame_bits as _frame_bits_cached
+
+# the constants the per-frame path computes with, as C values
+cdef long long US_PER_S
+cdef long long STD_ID_MAX
+cdef long long TRAILING_RECESSIVE_BITS
+cdef int _OK, _DROP, _CORRUPT
+cdef int _MAX_INLINE
 
 cdef class CanNetwork
 
@@ -51,6 +61,7 @@ cdef class CanController:
     cpdef bint send_at(self, object msg, long long t_us) except -1
     cpdef long long abort(self) except -1
     cpdef clear_status(self)
+    @cython.locals(data=bytes, n=cython.longlong)
     cpdef object load_tx(self, object msg, int arbitration_id, object payload)
 
 

@@ -44,7 +44,7 @@ from humanoid_twin.bus.foreign import ForeignPath, open_foreign_bus
 from humanoid_twin.bus.frames import (
     TRAILING_RECESSIVE_BITS,
     Filters,
-    _frame_bits_cached,
+    _frame_bits_cached,  # compiled core: the uncached C function _frame_bits instead (network.pxd)
     parse_filters,
 )
 from humanoid_twin.bus.twin_bus import RxPort, TwinBus, get_medium, release_medium
@@ -179,23 +179,23 @@ class CanController:
         else a new message (a pending frame, or one on the wire while bus-off, must not change).
         The frame is checked (``CanError``) and its bit length computed here, once: hand it to
         :meth:`send` unchanged."""
-        if type(payload) is not bytes:
-            payload = bytes(payload)
+        data = payload if type(payload) is bytes else bytes(payload)
+        n = len(data)
         if not 0 <= arbitration_id <= STD_ID_MAX:
             raise CanError(f"{self.name}: standard CAN ID must be 0..0x7FF, got {arbitration_id:#x}")
-        if len(payload) > 8:
-            raise CanError(f"{self.name}: a frame carries 0..8 data bytes, got {len(payload)}")
-        if msg is None or self._n_pending or self.state == BUS_OFF:
-            msg = can.Message(arbitration_id=arbitration_id, data=payload, is_extended_id=False, is_rx=False)
+        if n > 8:
+            raise CanError(f"{self.name}: a frame carries 0..8 data bytes, got {n}")
+        if msg is None or self._n_pending or self._off:          # _off: the state is BUS_OFF
+            msg = can.Message(arbitration_id=arbitration_id, data=data, is_extended_id=False, is_rx=False)
         else:
-            msg.data[:] = payload
-            msg.dlc = len(payload)
+            msg.data[:] = data
+            msg.dlc = n
             msg.timestamp = 0.0
             msg.channel = None
             msg.is_rx = False
         # checked and measured here, once: send() of this message skips both
         self._loaded = msg
-        self._loaded_bits = _frame_bits_cached(arbitration_id, payload)
+        self._loaded_bits = _frame_bits_cached(arbitration_id, data)
         return msg
 
     @property
