@@ -149,6 +149,7 @@ class Supervisor:
         self._master_sent = 0
         self._deadline_since: dict[int, int | None] = {k: None for k in SCUS}
         self._balance_since: int | None = None
+        self.reset_refused: str | None = None  # why the last reset was refused (None: it was not)
 
     # -- what the host sees -----------------------------------------------------------------------
     @property
@@ -173,6 +174,12 @@ class Supervisor:
         mode, code, node, _ = self.read()
         fault = f", fault {FAULT_NAMES[code]} node {node}" if code else ""
         return f"supervisor in {MODE_NAMES[mode]}{fault}: APPLY refused"
+
+    def reset_refusal(self) -> str:
+        """Why the last reset was refused (for the Master's ``last_invalid``)."""
+        mode, code, node, _ = self.read()
+        fault = f", fault {FAULT_NAMES[code]} node {node}" if code else ""
+        return f"supervisor in {MODE_NAMES[mode]}{fault}: reset refused: {self.reset_refused}"
 
     # -- requests from the host (usartProcessMsg) ------------------------------------------------
     def host_frame(self) -> None:
@@ -199,16 +206,41 @@ class Supervisor:
                 a.invalidate()
         self._set_mode(ESTOP)
 
-    def reset(self) -> None:
-        """Reset: forget the latched faults and run a new self-check (from any mode)."""
+    def reset(self) -> bool:
+        """Reset: forget the latched faults and run a new self-check (from any mode). From safe
+        or estop only a healthy robot is reset (:meth:`reset_blocker`): otherwise nothing changes,
+        the latch holds, and False is returned (the request is answered FC)."""
+        why = self.reset_blocker()
+        if why is not None:
+            self.reset_refused = why
+            return False
+        self.reset_refused = None
         self.latched.clear()
         self._seen.clear()
-        for k in self._quiet_rounds:
-            self._quiet_rounds[k] = 0
+        # the silence counters run on through a reset: a board already quiet is not given
+        # a fresh 3-round grace (docs/supervisor.md, "Reset")
         for k in self._deadline_since:
             self._deadline_since[k] = None
         self._balance_since = None
         self._set_mode(SELF_CHECK)
+        return True
+
+    def reset_blocker(self) -> str | None:
+        """Why a reset may not open the latch now (None: it may). In safe and estop every board
+        must have answered within the last 2 CAN rounds and the Master's own controller must be
+        on the bus (not bus-off; the Slaves answer only the Master's packets, so their answers
+        say its own frames reach the wire): a reset never re-opens motion on a robot with a dead
+        board, however often it is asked (docs/supervisor.md, "Reset")."""
+        if self.mode != SAFE and self.mode != ESTOP:
+            return None
+        now = self.clock.now_us
+        if self.can.drivers.controller.state == _BUS_OFF:
+            return "the Master's CAN controller is bus-off (read the CAN status first)"
+        quiet = [k for k, s in self.db.sensors.items()
+                 if s.last_rx_us < 0 or now - s.last_rx_us > 2 * ROUND_US]
+        if quiet:
+            return f"SCU {', '.join(map(str, quiet))} not answering"
+        return None
 
     # -- detection (timer interrupt, end of each CAN round) ------------------------------------
     def on_round(self) -> None:
