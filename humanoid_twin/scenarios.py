@@ -125,6 +125,9 @@ class RunOptions:
     laws: tuple[tuple[int | str, Any], ...] = ()
     host_controller: Callable[..., Any] | str | None = None
     host_period_ms: float = 20.0
+    # wall seconds the run may take (None: unbounded); beyond it the run ends with ScenarioError,
+    # its files closed (``run --wall-timeout``, sweep's ``--timeout``)
+    wall_timeout: float | None = None
 
 
 _BALANCE_TYPES = (ControlType.REACTION_CONTROL, ControlType.BALANCE_CONTROL)
@@ -291,6 +294,23 @@ def tilt_profile(
     return profile
 
 
+def _after_boot_s(motion_s: float, tilt: float) -> float:
+    """The run after the boot: the motion or the platform's tilt, whichever is longer, then settle."""
+    return max(motion_s, abs(tilt) / TILT_RATE_DEG_S) + SETTLE_S
+
+
+def expected_run_s(scenario: str, duration: float | None = None, T: float | None = None,
+                   motion: float | None = None, perna: int = 1, tilt: float = 0.0) -> float:
+    """How long a run lasts at most, in simulated seconds, known before it starts: ``duration``
+    when given, else the boot's bound (:data:`BOOT_TIMEOUT_S`) + the motion or the tilt + the
+    settling (what the CLI sizes the outputs' disk space by)."""
+    if duration is not None:
+        return duration
+    spec = get_scenario(scenario)
+    motion_s = float(np.sum(spec.plan(T, motion, perna).t)) if spec.moves else 0.0
+    return BOOT_TIMEOUT_S + _after_boot_s(motion_s, tilt)
+
+
 def run(opts: RunOptions, on_progress: Callable[[float, float | None], None] | None = None,
         on_twin: Callable[[Twin], None] | None = None) -> dict[str, Any]:
     """Run one scenario headless and return its summary (docs/scenarios.md).
@@ -314,6 +334,7 @@ def run(opts: RunOptions, on_progress: Callable[[float, float | None], None] | N
         return sup.mode in (SAFE, ESTOP)
 
     recorder = canlog = None
+    summary: dict[str, Any] | None = None
     wall0 = time.perf_counter()
     try:
         the_plan = spec.plan(opts.T, opts.motion, opts.perna)
@@ -321,8 +342,7 @@ def run(opts: RunOptions, on_progress: Callable[[float, float | None], None] | N
             split = spec.double_support or the_plan.lead is not None
             the_plan = the_plan.with_control(CONTROL_CHOICES[opts.control], split=split)
         motion_s = float(np.sum(the_plan.t)) if spec.moves else 0.0
-        # the run after the boot: the motion or the platform's tilt, whichever is longer, then settle
-        after_boot_s = max(motion_s, abs(opts.tilt) / TILT_RATE_DEG_S) + SETTLE_S
+        after_boot_s = _after_boot_s(motion_s, opts.tilt)
         if opts.out is not None:
             from humanoid_twin.recording import Recorder, compact_for
 
@@ -429,11 +449,26 @@ def run(opts: RunOptions, on_progress: Callable[[float, float | None], None] | N
             summary["host_controller_calls"] = host_calls
         return summary
     finally:
-        if recorder is not None:
-            recorder.close()
-        if canlog is not None:
-            canlog.close()
-        twin.close()
+        _close_all(recorder, canlog, twin)
+        if summary is not None and recorder is not None and recorder.compaction_error is not None:
+            # the compaction failed (no room for its copy, a signal): the file is kept as recorded
+            summary["recording_compacted"] = False
+            summary["recording_note"] = recorder.compaction_error
+
+
+def _close_all(*things: Any) -> None:
+    """Close every output and the twin, each even when an earlier one failed; the first error
+    is raised once all are closed (a recording that failed must not leave the CAN log open)."""
+    first: BaseException | None = None
+    for thing in things:
+        if thing is None:
+            continue
+        try:
+            thing.close()
+        except BaseException as exc:    # noqa: BLE001 - raised again below, after the others
+            first = first or exc
+    if first is not None:
+        raise first
 
 
 def _round(x: float | None) -> float | None:
@@ -453,4 +488,4 @@ def _finite(x: float) -> float | None:
 
 __all__ = ["RunOptions", "Monitor", "Plan", "Scenario", "REGISTRY", "scenario", "get_scenario", "boot",
            "hold", "BootError", "ScenarioError", "ScenarioInputError", "SCENARIOS", "CONTROL_CHOICES", "plan",
-           "run", "tilt_profile"]
+           "run", "tilt_profile", "expected_run_s"]
