@@ -438,8 +438,12 @@ def run(opts: RunOptions, on_progress: Callable[[float, float | None], None] | N
             "seed": opts.seed,
             "mode": sup.mode_name,
             "faults": [f.as_dict() for f in sup.faults],
-            "injected": [s.as_dict() for s in opts.faults],
+            # the faults that started (one whose T0 lies beyond the run's end is listed apart)
+            "injected": [s.as_dict() for s in opts.faults if _started(s, injector)],
         }
+        not_started = [s.as_dict() for s in opts.faults if not _started(s, injector)]
+        if not_started:
+            summary["injected_not_started"] = not_started
         if host_error is not None:
             summary["host_error"] = host_error
         law_faults = [sl.servo.law_fault for sl in twin.slaves.values() if sl.servo.law_fault is not None]
@@ -454,6 +458,10 @@ def run(opts: RunOptions, on_progress: Callable[[float, float | None], None] | N
             # the compaction failed (no room for its copy, a signal): the file is kept as recorded
             summary["recording_compacted"] = False
             summary["recording_note"] = recorder.compaction_error
+
+
+def _started(spec: FaultSpec, injector: FaultInjector) -> bool:
+    return any(s is spec for s in injector.started)
 
 
 def _close_all(*things: Any) -> None:

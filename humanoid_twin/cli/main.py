@@ -313,8 +313,16 @@ class _Outputs:
 
 
 def _check_seed_and_tilt(args: argparse.Namespace) -> None:
-    """``--seed`` and ``--tilt``, the options ``run`` and ``serve`` share (one line, exit 2)."""
+    """``--seed``, ``--tilt`` and how the ``--fault`` s compose, the options ``run`` and ``serve``
+    share (one line, exit 2)."""
+    from humanoid_twin.fault_compose import check_composition
+    from humanoid_twin.faults import FaultSpecError
     from humanoid_twin.plant.plant import TILT_MAX_DEG
+
+    try:
+        check_composition(getattr(args, "fault", None) or ())
+    except FaultSpecError as exc:
+        raise _usage_error(str(exc)) from None
 
     if not 0 <= args.seed <= SEED_MAX:
         raise _usage_error(f"--seed {args.seed}: must be 0..{SEED_MAX}")
