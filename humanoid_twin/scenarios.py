@@ -44,7 +44,7 @@ from humanoid_twin.host.timebase import sleep as host_sleep
 from humanoid_twin.master.supervisor import ESTOP, SAFE, SupervisorConfig
 from humanoid_twin.monitor import Monitor
 from humanoid_twin.protocol.wire import ControlType
-from humanoid_twin.slave.laws import install_laws
+from humanoid_twin.slave.laws import LawError, install_laws
 from humanoid_twin.twin import Twin
 
 CONTROL_CHOICES: dict[str, int] = {t.label: t for t in ControlType}   # run --control
@@ -61,9 +61,19 @@ class ScenarioInputError(ScenarioError):
     """The options ask for something the run cannot do (a ``--duration`` shorter than the boot)."""
 
 
-class _DurationReachedError(Exception):
+class _DurationReachedError(BaseException):
     """Raised by the clock at ``--duration`` when that instant falls inside the motion: the run is
-    cut there and its summary says ``completed: false``."""
+    cut there and its summary says ``completed: false``. A ``BaseException``: a host controller's
+    ``except Exception`` does not swallow it."""
+
+
+class _HostBoundReachedError(BaseException):
+    """Raised by the clock at the run's end while a host controller runs: whatever the
+    controller does (sleeps, loops), the run ends at its duration (issue 24)."""
+
+
+class _WallTimeoutError(BaseException):
+    """SIGALRM at ``wall_timeout`` wall seconds (``run --wall-timeout``)."""
 
 
 class BootError(ScenarioError):
@@ -294,6 +304,54 @@ def tilt_profile(
     return profile
 
 
+def _arm_wall_timeout(seconds: float | None) -> Callable[[], None]:
+    """SIGALRM after ``seconds`` of wall time raises :class:`_WallTimeoutError` where the run is
+    (also in a host controller's ``time.sleep``); returns the function that disarms it. Main
+    thread only (elsewhere, and with None, nothing is armed)."""
+    import signal
+    import threading
+
+    if seconds is None or threading.current_thread() is not threading.main_thread():
+        return lambda: None
+
+    fired = [0]
+
+    def on_alarm(signum: int, frame: Any) -> None:
+        # raised again every 0.5 s while user code swallows it; after 5 s of that, the process
+        # ends (one line, temporary files removed, exit 1): humanoid_twin/signals.hard_exit
+        fired[0] += 1
+        if fired[0] > 10:
+            from humanoid_twin.signals import hard_exit
+
+            hard_exit(1, f"humanoid-twin: the run took more than {seconds:g} wall seconds (--wall-timeout) "
+                      "and user code swallowed the stop: ended at once")
+        raise _WallTimeoutError
+
+    previous = signal.signal(signal.SIGALRM, on_alarm)
+    signal.setitimer(signal.ITIMER_REAL, seconds, 0.5)
+
+    def disarm() -> None:
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        signal.signal(signal.SIGALRM, previous if previous is not None else signal.SIG_DFL)
+
+    return disarm
+
+
+def _arm_host_bound(twin: Twin, duration: float) -> dict[str, Any]:
+    """From ``duration`` on, every 20 ms of the clock raises :class:`_HostBoundReachedError`
+    while the returned dict's ``armed`` is true: a host controller cannot run the twin past the
+    run's end, even one that swallows the first (``except BaseException``)."""
+    state: dict[str, Any] = {"armed": True}
+
+    def bound() -> None:
+        if state["armed"]:
+            twin.clock.schedule(twin.clock.now_us + 20_000, bound)
+            raise _HostBoundReachedError
+
+    twin.clock.schedule(max(round(duration * US_PER_S), twin.clock.now_us), bound)
+    return state
+
+
 def _after_boot_s(motion_s: float, tilt: float) -> float:
     """The run after the boot: the motion or the platform's tilt, whichever is longer, then settle."""
     return max(motion_s, abs(tilt) / TILT_RATE_DEG_S) + SETTLE_S
@@ -326,7 +384,11 @@ def run(opts: RunOptions, on_progress: Callable[[float, float | None], None] | N
     sup = twin.master.supervisor
     injector = FaultInjector(twin, opts.faults, opts.seed)
     if opts.laws:
-        install_laws(twin, opts.laws)
+        try:
+            install_laws(twin, opts.laws)
+        except LawError as exc:       # a law that cannot be made for every board: a bad --law
+            twin.close()
+            raise ScenarioInputError(str(exc)) from None
     host_step = load_host_controller(opts.host_controller) if opts.host_controller is not None else None
     host_error: str | None = None
 
@@ -336,6 +398,7 @@ def run(opts: RunOptions, on_progress: Callable[[float, float | None], None] | N
     recorder = canlog = None
     summary: dict[str, Any] | None = None
     wall0 = time.perf_counter()
+    disarm = _arm_wall_timeout(opts.wall_timeout)
     try:
         the_plan = spec.plan(opts.T, opts.motion, opts.perna)
         if opts.control is not None:
@@ -404,15 +467,20 @@ def run(opts: RunOptions, on_progress: Callable[[float, float | None], None] | N
                     raise ScenarioError(f"{opts.scenario}: {exc}") from exc
                 host_error = f"{opts.scenario}: {exc}"
             if host_step is not None and host_error is None:
+                bound = _arm_host_bound(twin, duration)
                 try:
                     host_calls = run_host_controller(H, host_step, monitor, duration, opts.host_period_ms,
                                                      should_stop=stopped).calls
+                except _HostBoundReachedError as exc:  # the run reached its duration: completed
+                    host_calls = exc.host_context.calls  # type: ignore[attr-defined]
                 except drivers.CommError as exc:
                     if not stopped() and not opts.faults:
                         raise ScenarioError(f"host controller: {exc}") from exc
                     host_error = f"host controller: {exc}"
                 except RuntimeError as exc:
                     raise ScenarioError(str(exc)) from exc
+                finally:
+                    bound["armed"] = False
             rest = duration - twin.now_s
             if rest > 0:
                 host_sleep(H, rest)
@@ -452,7 +520,11 @@ def run(opts: RunOptions, on_progress: Callable[[float, float | None], None] | N
         if host_calls is not None:
             summary["host_controller_calls"] = host_calls
         return summary
+    except _WallTimeoutError:
+        raise ScenarioError(f"the run took more than {opts.wall_timeout:g} wall seconds (--wall-timeout): "
+                            f"stopped at t={twin.now_s:.3f} s simulated") from None
     finally:
+        disarm()
         _close_all(recorder, canlog, twin)
         if summary is not None and recorder is not None and recorder.compaction_error is not None:
             # the compaction failed (no room for its copy, a signal): the file is kept as recorded

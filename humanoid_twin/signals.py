@@ -21,7 +21,7 @@ from types import FrameType
 from typing import Any
 
 __all__ = ["Interrupted", "Terminated", "EXIT_CODES", "install", "restore", "deferred", "pending",
-           "exit_code", "is_signal"]
+           "exit_code", "is_signal", "on_hard_exit", "hard_exit"]
 
 
 class Interrupted(KeyboardInterrupt):
@@ -104,3 +104,27 @@ def deferred() -> Iterator[None]:
             got, _state["pending"] = _state["pending"], []
             if got:
                 signal.raise_signal(got[0])    # the handler in place now: ours raises, SIG_DFL ends
+
+
+_cleanups: list[Any] = []
+
+
+def on_hard_exit(fn: Any) -> None:
+    """Run ``fn()`` in :func:`hard_exit` (the CLI removes its temporary files there)."""
+    _cleanups.append(fn)
+
+
+def hard_exit(code: int, message: str) -> None:
+    """The last resort for user code that swallows every exception the run raises to end it
+    (``except BaseException: pass`` in a loop): one line on stderr, the registered clean-ups,
+    and the process ends with ``code`` at once (``os._exit``: no ``finally`` of the stuck code)."""
+    import os
+    import sys
+
+    with contextlib.suppress(BaseException):
+        sys.stderr.write(message.rstrip("\n") + "\n")
+        sys.stderr.flush()
+    for fn in _cleanups:
+        with contextlib.suppress(BaseException):
+            fn()
+    os._exit(code)

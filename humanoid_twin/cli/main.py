@@ -22,7 +22,13 @@ import signal
 import sys
 from pathlib import Path
 
-from humanoid_twin.cli.argtypes import degrees_90, non_negative_seconds, positive_seconds, tcp_port
+from humanoid_twin.cli.argtypes import (
+    degrees_90,
+    non_negative_seconds,
+    positive_seconds,
+    tcp_port,
+    wall_seconds,
+)
 
 EXIT_USAGE = 2
 EXIT_SUPERVISOR = 3     # the run ended with the supervisor in safe or estop (docs/supervisor.md)
@@ -144,6 +150,9 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--json", action="store_true", help="print the summary as one JSON object on the "
                      "last line of stdout")
     run.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
+    run.add_argument("--wall-timeout", type=wall_seconds, metavar="S",
+                     help="end the run after S seconds of wall time (one line, exit 1, files closed, "
+                     "nothing replaced); default: no limit")
     run.add_argument("--viewer", action="store_true", help="watch the run live in MuJoCo's own viewer, "
                      "paced to real time (needs a display)")
     _add_can_options(run)
@@ -396,6 +405,9 @@ def cmd_run(args: argparse.Namespace) -> int:
     wanted = {k: (p, w) for k, p, w in (("out", out, "--out"), ("can_log", args.can_log, "--can-log"))
               if p is not None}
     outputs = _Outputs()
+    from humanoid_twin import signals
+
+    signals.on_hard_exit(outputs.discard)     # --wall-timeout against code that swallows the stop
     outputs.check_space(wanted, expected_run_s(args.scenario, args.duration, args.T, args.motion,
                                                args.perna, args.tilt))
     try:
