@@ -80,7 +80,7 @@ def write_table(path: Path, rows: list[dict[str, Any]], columns: list[str]) -> N
                     w.writerow([_csv_text(row.get(c)) for c in columns])
                 f.flush()
                 os.fsync(f.fileno())
-        os.replace(tmp, path)
+        os.replace(tmp, path.resolve())   # through a symlink: beside its target (same disk)
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
