@@ -172,6 +172,9 @@ def build_parser() -> argparse.ArgumentParser:
     where.add_argument("--tcp", type=tcp_port, metavar="PORT", help="serve on TCP PORT (0: any free port)")
     serve.add_argument("--host", default="127.0.0.1", help="address to bind with --tcp (default 127.0.0.1; "
                        "::1 for IPv6 loopback)")
+    serve.add_argument("--allow-remote", action="store_true",
+                       help="allow a --host that is not loopback (the protocol has no authentication: "
+                       "anyone on the network could drive the robot)")
     serve.add_argument("--idle-timeout", type=non_negative_seconds, default=600.0, metavar="S",
                        help="disconnect a TCP client that sent nothing for S wall seconds, so that a "
                        "silent client cannot hold the port (default 600; 0: never)")
@@ -511,22 +514,48 @@ def cmd_serve(args: argparse.Namespace) -> int:
     _check_can_interface(args)
     if args.tcp is not None:
         _check_bind(args.host, args.tcp)
-    stop = {"flag": False}
+        _check_remote(args.host, args.allow_remote)
+    stop: dict[str, int | None] = {"signal": None}
 
     def _stop(signum: int, frame: object) -> None:
-        stop["flag"] = True
+        stop["signal"] = stop["signal"] or signum
 
     signal.signal(signal.SIGTERM, _stop)
     signal.signal(signal.SIGINT, _stop)
     from humanoid_twin.faults import supervisor_config
 
     try:
-        return serve(tcp_port=args.tcp, host=args.host, seed=args.seed, tilt=args.tilt,
+        code = serve(tcp_port=args.tcp, host=args.host, seed=args.seed, tilt=args.tilt,
                      can_interface=args.can_interface, can_channel=args.can_channel,
                      faults=tuple(args.fault), supervisor=supervisor_config(args),
-                     should_stop=lambda: stop["flag"], idle_timeout_s=args.idle_timeout or None)
+                     should_stop=lambda: stop["signal"] is not None,
+                     idle_timeout_s=args.idle_timeout or None)
     except ServeError as exc:
         raise _usage_error(str(exc)) from None
+    # ended by a signal: 130 (SIGINT) or 143 (SIGTERM), as run (issue 24; it was 0)
+    return 128 + stop["signal"] if stop["signal"] is not None else code
+
+
+def _check_remote(host: str, allow: bool) -> None:
+    """``--host`` is a loopback address unless ``--allow-remote`` (the protocol has no
+    authentication: anyone who reaches the port can drive, e-stop or reset the robot)."""
+    import ipaddress
+    import socket
+
+    try:
+        infos = socket.getaddrinfo(host, None, 0, socket.SOCK_STREAM, 0, socket.AI_PASSIVE)
+        addrs = {info[4][0] for info in infos}
+    except (socket.gaierror, UnicodeError) as exc:
+        raise _usage_error(f"--host {host}: not an address or a known host name ({exc})") from None
+    remote = [a for a in addrs if not ipaddress.ip_address(a.split("%")[0]).is_loopback]
+    if not remote:
+        return
+    if not allow:
+        raise _usage_error(f"--host {host} is reachable from other machines and the robot's protocol has "
+                           "no authentication: add --allow-remote if that is what you want (docs/serve.md)")
+    sys.stderr.write(f"humanoid-twin serve: warning: listening on {host}, reachable from the network; the "
+                     "protocol has no authentication: anyone who reaches this port can drive, e-stop or "
+                     "reset the robot\n")
 
 
 def _check_bind(host: str, port: int) -> None:
