@@ -12,6 +12,7 @@ cdef class Clock:
     cpdef schedule(self, long long t_us, object callback)
     cpdef schedule_fast(self, long long t_us, object callback)
     cpdef object next_due_us(self)
+    cpdef bint due_by(self, long long t_us) except -1
     @cython.locals(queue=list)
     cpdef bint skip_to(self, long long t_us)
     @cython.locals(queue=list, n=cython.longlong, outer=cython.longlong, t=cython.longlong)

@@ -84,6 +84,13 @@ class Clock:
         queue = self._queue
         return queue[0][0] if queue else None
 
+    def due_by(self, t_us: int) -> bool:
+        """Whether an event is due at or before ``t_us`` (``next_due_us() <= t_us``, False when
+        nothing is scheduled): the question the wire's and the boards' fast paths ask, typed
+        for compiled callers (``cpdef bint``)."""
+        queue = self._queue
+        return bool(queue) and queue[0][0] <= t_us
+
     def skip_to(self, t_us: int) -> bool:
         """Inside an event, move ``now_us`` on to ``t_us`` when that changes nothing: no event is
         due up to ``t_us`` and ``t_us`` is within the ``run_until`` in progress. The caller then

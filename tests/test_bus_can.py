@@ -173,6 +173,43 @@ def test_send_at_requests_for_a_later_instant_only_when_nothing_is_due_before():
     assert [(t, i) for t, i, _ in rec["master"].got] == [(1005 + bits - 3, msg.arbitration_id)]
 
 
+def test_clock_due_by_is_next_due_at_or_before():
+    """Clock.due_by(t) (the fast paths' typed question) is next_due_us() <= t, False when empty."""
+    clock = Clock()
+    assert clock.next_due_us() is None and not clock.due_by(0) and not clock.due_by(10**12)
+    clock.schedule(50, lambda: None)
+    clock.schedule(30, lambda: None)
+    assert clock.next_due_us() == 30
+    assert [clock.due_by(t) for t in (29, 30, 31)] == [False, True, True]
+    clock.run_until(40)
+    assert clock.next_due_us() == 50 and not clock.due_by(49) and clock.due_by(50)
+
+
+def test_twin_bus_deliver_is_its_port_and_counts_skips_there():
+    """The wire's per-frame path is each TwinBus's RxPort (compiled with the wire): deliver takes
+    the route kept for the ID after the first frame; rx_skipped is counted on the port."""
+    from humanoid_twin.bus.twin_bus import RxPort, TwinBus
+
+    got: list[tuple[str, int]] = []
+    tx = TwinBus("port-test")
+    a = TwinBus("port-test", rx_callback=lambda m: got.append(("a", m.arbitration_id)), rx_ids=[0x10])
+    b = TwinBus("port-test", rx_callback=lambda m: got.append(("b", m.arbitration_id)))
+    try:
+        assert isinstance(tx.port, RxPort) and tx.port.bus is tx
+        for arb in (0x10, 0x11, 0x10, 0x11):
+            tx.deliver(can.Message(arbitration_id=arb, data=b"", is_extended_id=False))
+        assert got == [("a", 0x10), ("b", 0x10), ("b", 0x11), ("a", 0x10), ("b", 0x10), ("b", 0x11)]
+        assert a.rx_skipped == a.port.rx_skipped == 2 and b.rx_skipped == 0
+        assert sorted(tx.port.routes) == [0x10, 0x11]
+        b.set_muted(True)                              # the routes are rebuilt without b
+        assert tx.port.routes == {}
+        tx.deliver(can.Message(arbitration_id=0x10, data=b"", is_extended_id=False))
+        assert got[-1] == ("a", 0x10) and len(got) == 7
+    finally:
+        for bus in (tx, a, b):
+            bus.shutdown()
+
+
 def test_clock_skip_to_only_over_nothing_and_within_the_run():
     """Clock.skip_to (the wire handles a frame's end at once): inside an event, now moves on only
     when no event is due up to the target and the target is within the run_until in progress."""

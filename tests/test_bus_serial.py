@@ -136,6 +136,30 @@ def test_twin_url_reads_advance_virtual_time(echo_url):
         ser.close()
 
 
+def test_host_byte_us_and_a_read_advances_once_to_its_last_byte():
+    """A twin:// read of n bytes already on their way advances the twin once, to the stop bit of
+    the n-th (SerialLink.host_byte_us), and ends at the instant byte-by-byte advancing would."""
+    clock = Clock()
+    link = SerialLink(clock)
+    assert link.host_byte_us(1) is None
+    link.device_write(b"abcdef")
+    assert [link.host_byte_us(n) for n in (1, 4, 6, 9)] == [stop_bit_us(n) for n in (1, 4, 6, 6)]
+    targets: list[int] = []
+
+    def advance(t: int) -> None:
+        targets.append(t)
+        clock.run_until(t)
+
+    register_link("read-once", link, advance)
+    try:
+        with serial.serial_for_url("twin://read-once", baudrate=115200, parity="E", timeout=1.0) as port:
+            assert port.read(4) == b"abcd"
+            assert targets == [stop_bit_us(4)] and clock.now_us == stop_bit_us(4)
+            assert port.read(2) == b"ef" and targets[-1] == clock.now_us == stop_bit_us(6)
+    finally:
+        unregister_link("read-once")
+
+
 def test_twin_url_virtual_timeout_returns_short(echo_url):
     clock, link, seen = echo_url
     ser = serial.serial_for_url("twin://echo-test", baudrate=115200, parity="E", timeout=0.5)

@@ -25,8 +25,10 @@ Both bridges serve one client at a time, in *sessions* (docs/serve.md):
   logged; a client arriving while the previous one is leaving waits its turn;
 - pty: the bridge does not keep the slave end open, so it sees a client open and close it
   (poll HUP); while a client has it open the pty is exclusive (``TIOCEXCL``: another open fails
-  with EBUSY, except for root); after each client the slave's speed is reset so that the next
-  client's 115200 8E1 settings are accepted again (docs/serve.md: Linux ptys have no parity).
+  with EBUSY, except for root); each client finds the pty in the same idle settings (raw, 38400
+  baud, *marked*), and the bridge marks the client's settings again once they have stayed
+  unchanged for ``PtyBridge.REARM_AFTER_S``, so that a client's parity request changes something
+  and is accepted (:class:`PtyBridge`; docs/serve.md: Linux ptys have no parity).
 
 ``log(text)`` gets one line per event (connect, leave, refuse, backpressure); ``serve`` writes
 them to stderr.
@@ -172,11 +174,44 @@ class _Bridge:
 
 
 class PtyBridge(_Bridge):
-    """A pty pair: the client opens ``port_name`` (``/dev/pts/N``); the bridge holds the master."""
+    """A pty pair: the client opens ``port_name`` (``/dev/pts/N``); the bridge holds the master.
 
-    # the slave's speed between clients: any client speed other than this one is accepted with
-    # parity (Linux refuses a PARENB request that changes nothing else on a pty)
+    **Parity on a Linux pty.** The pts driver keeps no parity bit (it clears ``PARENB`` and forces
+    ``CS8`` in every request), and the C library of Debian and Ubuntu (a glibc patch; Fedora has a
+    similar one) reads the settings back after each ``tcsetattr`` and answers ``EINVAL`` when the
+    call changed nothing while the driver dropped ``PARENB`` (or a size CS6/CS7); the rest of the
+    request *was* applied. So a client's parity request is accepted only if it also changes
+    something else. The bridge keeps the pty *marked* with flags that mean nothing on a pty (no
+    parity error ever arrives), but that serial libraries rewrite whenever they set parity:
+
+    - ``INPCK`` (pyserial clears it; Octave's instrument-control sends ``c_iflag = 0``),
+    - ``IGNPAR`` (Boost.Asio clears it when it enables parity, even or odd),
+    - ``PARODD`` (an even-parity request clears it),
+
+    and, between clients, the speed ``IDLE_SPEED`` (38400: a client asking for 115200 changes
+    it). A client's request clears the marks it rewrites; once the client's settings have stayed
+    unchanged for ``REARM_AFTER_S`` (seen by two polls), the bridge sets the marks again, so its
+    next parity request is accepted too. The bytes are not changed (with ``IGNPAR`` set next to
+    ``INPCK``, the line discipline keeps its raw path).
+
+    What no state of the pty can give (tests/test_pty_termios.py, docs/serve.md): the *same*
+    request with parity sent twice within ``REARM_AFTER_S`` (the first one leaves the pty exactly
+    as the second one asks, so the second changes nothing: EINVAL), which is what Octave's
+    ``serialport(..., "Parity", "even")`` constructor does (it sends its whole settings again
+    for the flow control, the data bits and the stop bits, microseconds apart); and an odd-parity
+    request that touches nothing but ``PARENB|PARODD``.
+
+    Writing the marks reads the client's settings and writes them back with the marks: a client
+    ``tcsetattr`` landing between that read and that write (a few microseconds, at most once per
+    settings change of the client, and only after it has left its settings alone for
+    ``REARM_AFTER_S``) would be undone.
+    """
+
+    # the slave's speed between clients: a client asking for another speed changes something
     IDLE_SPEED = termios.B38400
+    MARK_IFLAG = termios.INPCK | termios.IGNPAR
+    MARK_CFLAG = termios.PARODD
+    REARM_AFTER_S = 0.002
 
     def __init__(self, link: SerialLink, **options: object) -> None:
         super().__init__(link, **options)  # type: ignore[arg-type]
@@ -185,20 +220,55 @@ class PtyBridge(_Bridge):
             tty.setraw(slave_fd, termios.TCSANOW)
             os.set_blocking(self._master_fd, False)
             self.port_name = os.ttyname(slave_fd)
+            idle = termios.tcgetattr(self._master_fd)   # the slave's settings, through the master
         except BaseException:
             os.close(self._master_fd)
             os.close(slave_fd)
             raise
         os.close(slave_fd)           # we watch for HUP: no client has the slave open
-        self._reset_speed()
+        idle[4] = idle[5] = self.IDLE_SPEED
+        self._idle_attrs = self._marked(idle)
+        self._seen: list = []        # the client's settings as last read, and since when
+        self._seen_at = 0.0
+        self._reset_settings()
         self._poller = select.poll()
         self._poller.register(self._master_fd, select.POLLIN | select.POLLHUP)
 
-    def _reset_speed(self) -> None:
+    @classmethod
+    def _marked(cls, attrs: list) -> list:
+        marked = list(attrs)
+        marked[0] |= cls.MARK_IFLAG
+        marked[2] |= cls.MARK_CFLAG
+        return marked
+
+    def _reset_settings(self) -> None:
+        """The idle settings, for the next client: raw, ``IDLE_SPEED``, marked."""
         with contextlib.suppress(termios.error):
-            attrs = termios.tcgetattr(self._master_fd)   # the slave's settings, through the master
-            attrs[4] = attrs[5] = self.IDLE_SPEED
-            termios.tcsetattr(self._master_fd, termios.TCSANOW, attrs)
+            termios.tcsetattr(self._master_fd, termios.TCSANOW, self._idle_attrs)
+            self._seen = termios.tcgetattr(self._master_fd)
+        self._seen_at = time.monotonic()
+
+    def _rearm(self) -> None:
+        """Mark the client's settings again once they have stayed unchanged for ``REARM_AFTER_S``."""
+        try:
+            now = termios.tcgetattr(self._master_fd)
+        except termios.error:
+            return
+        t = time.monotonic()
+        if now != self._seen:        # the client changed its settings: wait until they settle
+            self._seen, self._seen_at = now, t
+            return
+        if t - self._seen_at < self.REARM_AFTER_S:
+            return
+        marked = self._marked(now)
+        if marked == now:
+            return
+        try:
+            termios.tcsetattr(self._master_fd, termios.TCSANOW, marked)
+            self._seen = termios.tcgetattr(self._master_fd)
+        except termios.error:
+            return
+        self._seen_at = t
 
     def _slave_open(self) -> bool:
         events = self._poller.poll(0)
@@ -228,7 +298,9 @@ class PtyBridge(_Bridge):
         if self._session_open and not present:
             self._drain_input()
             self._end("closed the port")
-            self._reset_speed()
+            self._reset_settings()
+        if self._session_open:
+            self._rearm()
         if self._session_open and self._idle():
             # a pty cannot be taken from its client: drop what it sent and say so, once per timeout
             self._log(f"client {self._who} idle for more than {self.idle_timeout_s:g} s "

@@ -3,14 +3,16 @@ slides 25-27, docs/buses.md): transmit/receive error counters, error-active -> e
 bus-off, and the bus-off recovery after 128 sequences of 11 recessive bits.
 
 ``ErrorConfinement`` is the part of :class:`humanoid_twin.bus.network.CanNetwork` that keeps
-these counters; the wire's timing and arbitration (``network.py``) calls it when a frame
-completes (``_rx_success``), when an error frame ends one (``_update_state``), and when a
+these counters (the root of the wire's one inheritance chain: ``ErrorConfinement`` <-
+``ForeignPath`` <- ``CanNetwork``, one chain because the compiled core makes each an extension
+type, which has one base); the wire's timing and arbitration (``network.py``) calls it when a
+frame completes (``_rx_success``), when an error frame ends one (``_update_state``), and when a
 board clears its status (``_clear_status``).
 """
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 from humanoid_twin.bus.frames import TRAILING_RECESSIVE_BITS
 from humanoid_twin.bus.twin_bus import TwinBus
@@ -32,22 +34,13 @@ RECOVERY_SEQUENCES = 128        # 128 occurrences of 11 consecutive recessive bi
 
 
 class ErrorConfinement:
-    """TEC/REC, error states and bus-off recovery of every node on one wire (a mixin of
-    ``CanNetwork``: it reads the wire's clock, nodes, bit rate and last dominant instant)."""
+    """TEC/REC, error states and bus-off recovery of every node on one wire (the base of
+    ``CanNetwork``, which sets the wire's clock, nodes, bit rate and last dominant instant
+    read here: ``clock``, ``bitrate``, ``_nodes``, ``_recovering``, ``_rec_dirty``, ``_dom_end``)."""
 
+    # CanNetwork provides _dur(bits) (bit times in us) and _abort(ctrl) (TXABT of every
+    # pending frame of ctrl), used here
     __slots__ = ()
-    clock: Any
-    bitrate: int
-    _nodes: list[CanController]
-    _recovering: list[CanController]
-    _rec_dirty: bool
-    _dom_end: int
-
-    def _dur(self, bits: int) -> int:  # pragma: no cover - provided by CanNetwork
-        raise NotImplementedError
-
-    def _abort(self, ctrl: CanController) -> int:  # pragma: no cover - provided by CanNetwork
-        raise NotImplementedError
 
     def _rx_success(self, sender: CanController) -> None:
         dirty = False

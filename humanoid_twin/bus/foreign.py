@@ -10,10 +10,11 @@ their instants are the same as on the default ``humanoid_twin`` interface (tests
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import can
 
+from humanoid_twin.bus.confinement import ErrorConfinement
 from humanoid_twin.bus.frames import filters_accept
 from humanoid_twin.clock import US_PER_S
 
@@ -30,13 +31,12 @@ def open_foreign_bus(interface: str, channel: str, can_filters: list[dict] | Non
                    receive_own_messages=False, **kwargs)
 
 
-class ForeignPath:
-    """Frame delivery through a foreign python-can interface (a mixin of ``CanNetwork``)."""
+class ForeignPath(ErrorConfinement):
+    """Frame delivery through a foreign python-can interface (between ``ErrorConfinement`` and
+    ``CanNetwork`` in the wire's one inheritance chain; it reads the wire's ``interface``,
+    ``channel`` and ``_nodes``)."""
 
     __slots__ = ()
-    interface: str
-    channel: Any
-    _nodes: list[CanController]
 
     def _send_and_drain(self, ctrl: CanController, msg: can.Message, t_us: int) -> None:
         """Another python-can interface: put the frame on the sender's bus, drain the others."""

@@ -7,7 +7,14 @@
 #   send(msg) -> bint, send_at(msg, t_us) -> bint, abort() -> long long (frames dropped),
 #   load_tx(msg, arbitration_id, payload) -> the can.Message to send, clear_status().
 # ``pending`` stays a Python property (for C code: ``_n_pending`` is the wire's own field).
+# The clock's C calls for the boards are in clock.pxd (``Clock.due_by(t_us)``: is an event due
+# at or before t_us).
 cimport cython
+from humanoid_twin.clock cimport Clock
+from humanoid_twin.bus.foreign cimport ForeignPath
+from humanoid_twin.bus.twin_bus cimport RxPort
+
+cdef class CanNetwork
 
 cdef class CanController:
     cdef public object name
@@ -25,7 +32,7 @@ cdef class CanController:
     cdef public long long bus_off_count
     cdef public long long recoveries
     # the wire's own fields (bus/network.py, confinement.py, foreign.py; nobody else)
-    cdef public object _net
+    cdef public CanNetwork _net
     cdef public object _on_rx
     cdef public long long _tx_buffers
     cdef public long long _n_pending
@@ -37,9 +44,63 @@ cdef class CanController:
     cdef public bint _external
     cdef public object _loaded
     cdef public long long _loaded_bits
+    cdef public RxPort _port
 
     cpdef bint send(self, object msg) except -1
+    @cython.locals(net=CanNetwork, clock=Clock)
     cpdef bint send_at(self, object msg, long long t_us) except -1
     cpdef long long abort(self) except -1
     cpdef clear_status(self)
     cpdef object load_tx(self, object msg, int arbitration_id, object payload)
+
+
+cdef class CanNetwork(ForeignPath):
+    cdef public long long _bit_us
+    cdef public bint _twin
+    cdef public object _medium
+    cdef public dict _controllers
+    cdef public dict _external
+    cdef public list _listeners
+    cdef public list _pending
+    cdef public bint _busy
+    cdef public long long _start
+    cdef public tuple _current
+    cdef public bint _current_aborted
+    cdef public int _outcome
+    cdef public long long _idle_from
+    cdef public long long _seq
+    cdef public int _inline
+    cdef public bint _faults_on
+    cdef public double _drop_prob
+    cdef public double _corrupt_prob
+    cdef public object _rng
+    cdef public long long frames_sent
+    cdef public long long frames_dropped
+    cdef public long long error_frames
+    cdef public long long busy_us
+    cdef public bint _closed
+    cdef public object _decide_cb
+    cdef public object _complete_cb
+    cdef public object _error_cb
+
+    cpdef long long _dur(self, long long bits) except? -1
+    @cython.locals(arb=cython.longlong, bits=cython.longlong, seq=cython.longlong,
+                   now=cython.longlong, idle=cython.longlong, start=cython.longlong, clock=Clock)
+    cpdef bint _request(self, CanController ctrl, object msg, long long at=*) except -1
+    cpdef _kick(self)
+    @cython.locals(e=tuple, c=CanController, req=cython.longlong, key=cython.longlong,
+                   best_key=cython.longlong)
+    cpdef object _pick(self, long long start)
+    @cython.locals(start=cython.longlong, e=tuple, c=CanController)
+    cpdef _decide(self)
+    @cython.locals(bits=cython.longlong, outcome=cython.int, end=cython.longlong,
+                   bu=cython.longlong, t_eof=cython.longlong, clock=Clock)
+    cpdef _begin(self, tuple best, long long start)
+    @cython.locals(ctrl=CanController, t=cython.longlong, pending=list, idle=cython.longlong,
+                   start=cython.longlong, clock=Clock, first=cython.longlong, e=tuple,
+                   c=CanController, r=cython.longlong, sof=cython.longlong)
+    cpdef _complete(self)
+    @cython.locals(e=tuple, ctrl=CanController, c=CanController)
+    cpdef _error(self)
+    @cython.locals(n=cython.longlong, pending=list, keep=list, cur=tuple)
+    cpdef long long _abort(self, CanController ctrl) except -1

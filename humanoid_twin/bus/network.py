@@ -39,7 +39,6 @@ from humanoid_twin.bus.confinement import (  # noqa: F401  (re-exported: the err
     ERROR_STATE_CODE,
     PASSIVE_LIMIT,
     RECOVERY_SEQUENCES,
-    ErrorConfinement,
 )
 from humanoid_twin.bus.foreign import ForeignPath, open_foreign_bus
 from humanoid_twin.bus.frames import (
@@ -48,7 +47,7 @@ from humanoid_twin.bus.frames import (
     _frame_bits_cached,
     parse_filters,
 )
-from humanoid_twin.bus.twin_bus import TwinBus, get_medium, release_medium
+from humanoid_twin.bus.twin_bus import RxPort, TwinBus, get_medium, release_medium
 from humanoid_twin.clock import US_PER_S, Clock
 from humanoid_twin.protocol.canframes import STD_ID_MAX
 
@@ -82,7 +81,7 @@ class CanController:
         "frames_sent", "tx_refused", "tx_aborted", "tx_errors", "rx_errors",
         "bus_off_count", "recoveries",
         "_net", "_on_rx", "_tx_buffers", "_n_pending", "_off", "_suspend_until",
-        "_rec_count", "_rec_mark", "_filt", "_external", "_loaded", "_loaded_bits",
+        "_rec_count", "_rec_mark", "_filt", "_external", "_loaded", "_loaded_bits", "_port",
     )
 
     def __init__(self, network: CanNetwork, name: str, on_rx: Callable[[can.Message], None] | None,
@@ -115,6 +114,7 @@ class CanController:
         self._external = external
         self._loaded: can.Message | None = None   # the message load_tx built, checked, until sent
         self._loaded_bits = 0
+        self._port: RxPort | None = None           # the TwinBus's receive side (set by attach)
 
     def __repr__(self) -> str:
         return (f"CanController({self.name!r}, {self.state}, tec={self.tec}, rec={self.rec}, "
@@ -132,15 +132,16 @@ class CanController:
 
     def send_at(self, msg: can.Message, t_us: int) -> bool:
         """:meth:`send` with its TXREQ at ``t_us`` (``now <= t_us``), for a caller that knows
-        nothing runs on the clock before then (``clock.next_due_us() > t_us``): the same as
+        nothing runs on the clock before then (``not clock.due_by(t_us)``): the same as
         scheduling an event at ``t_us`` that calls :meth:`send`, without the event (a Slave's
         answer, ``ISR_LATENCY_US`` after the actuation packet). Checks are made now; the frame
         joins arbitration at ``t_us``. ``ValueError`` if an event is due before ``t_us``."""
-        clock = self._net.clock
-        nxt = clock.next_due_us()
-        if t_us < clock.now_us or (nxt is not None and nxt <= t_us):
-            raise ValueError(f"send_at({t_us}): an event is due before it (now {clock.now_us}, next {nxt})")
-        return self._net._request(self, msg, t_us)
+        net = self._net
+        clock = net.clock
+        if t_us < clock.now_us or clock.due_by(t_us):
+            raise ValueError(f"send_at({t_us}): an event is due before it "
+                             f"(now {clock.now_us}, next {clock.next_due_us()})")
+        return net._request(self, msg, t_us)
 
     def abort(self) -> int:
         """Abort every TX not yet on the wire (TXABT). Returns how many frames were dropped."""
@@ -169,7 +170,8 @@ class CanController:
     def rx_skipped(self) -> int:
         """Frames the acceptance filters took that were outside the node's ``rx_ids`` (only
         counted, not handed to its RX interrupt; :meth:`CanNetwork.attach`)."""
-        return getattr(self.bus, "rx_skipped", 0)
+        port = self._port
+        return port.rx_skipped if port is not None else 0
 
     def load_tx(self, msg: can.Message | None, arbitration_id: int, payload: bytes) -> can.Message:
         """The message to hand to :meth:`send`: ``msg`` reloaded with ``payload`` (like loading
@@ -208,12 +210,13 @@ class CanController:
             self._on_rx(msg)
 
 
-class CanNetwork(ErrorConfinement, ForeignPath):
+class CanNetwork(ForeignPath):
     """The CAN wire: virtual-time frame timing, arbitration by ID, error counters.
 
     This module holds the wire's timing and arbitration; the error confinement (TEC/REC,
     error-passive, bus-off and its recovery) is ``bus/confinement.py`` and the path through a
-    foreign python-can interface (virtual, socketcan) is ``bus/foreign.py``.
+    foreign python-can interface (virtual, socketcan) is ``bus/foreign.py``: one inheritance
+    chain, ``ErrorConfinement`` <- ``ForeignPath`` <- ``CanNetwork``.
 
     :param clock: the twin's lockstep clock.
     :param interface: ``"humanoid_twin"`` (default, filtered zero-copy delivery), ``"virtual"``
@@ -306,6 +309,7 @@ class CanNetwork(ErrorConfinement, ForeignPath):
             # the RX interrupt is called straight from the bus; a bus-off node is muted instead
             bus = TwinBus(self.channel, can_filters=can_filters, rx_callback=ctrl._on_rx, rx_ids=rx_ids)
             bus.mark_network_node()
+            ctrl._port = bus.port
         else:
             bus = open_foreign_bus(self.interface, self.channel, can_filters)
         ctrl.bus = bus
@@ -474,6 +478,7 @@ class CanNetwork(ErrorConfinement, ForeignPath):
         if ctrl is None or ctrl.bus is not bus:
             ctrl = CanController(self, f"external:{id(bus):x}", None, EXTERNAL_TX_QUEUE, external=True)
             ctrl.bus = bus
+            ctrl._port = bus.port
             self._external[id(bus)] = ctrl
         if not self._request(ctrl, msg):
             raise can.CanOperationError(f"humanoid_twin channel {self.channel}: TX queue full")
@@ -489,14 +494,18 @@ class CanNetwork(ErrorConfinement, ForeignPath):
     def _pick(self, start: int) -> tuple[int, int, CanController, can.Message, int] | None:
         """The arbitration winner among the frames requested up to ``start`` (lowest ID)."""
         best = None
+        best_key = 0
         for e in self._pending:
-            if e[1] > start:
+            req = e[1]
+            if req > start:
                 continue
             c = e[2]
             if c.silenced or c._suspend_until > start:
                 continue
-            if best is None or e[0] < best[0]:
+            key = e[0]
+            if best is None or key < best_key:
                 best = e
+                best_key = key
         return best
 
     def _decide(self) -> None:
@@ -587,7 +596,7 @@ class CanNetwork(ErrorConfinement, ForeignPath):
         if self._outcome == _DROP:
             self.frames_dropped += 1
         elif self._twin:
-            ctrl.bus.deliver(msg)  # type: ignore[attr-defined]
+            ctrl._port.deliver(msg)  # type: ignore[union-attr]  # TwinBus.deliver, compiled
         else:
             self._send_and_drain(ctrl, msg, t)
         if self._listeners:
@@ -608,20 +617,21 @@ class CanNetwork(ErrorConfinement, ForeignPath):
             # start; when nothing on the clock is due up to it, nothing can request (or abort)
             # a frame before then, and the decision taken now is the one _decide would take
             # there (the same winner, the same instants; one clock event less per frame).
-            first = None
+            first = -1                  # none (virtual times are >= 0)
             if not self._recovering:
                 for e in pending:
                     c = e[2]
                     if c.silenced:
-                        first = None
+                        first = -1
                         break
-                    r = e[1] if e[1] > c._suspend_until else c._suspend_until
-                    if first is None or r < first:
+                    r = e[1]
+                    if c._suspend_until > r:
+                        r = c._suspend_until
+                    if first < 0 or r < first:
                         first = r
-            if first is not None:
+            if first >= 0:
                 sof = first if first > start else start
-                nxt = clock.next_due_us()
-                if nxt is None or nxt > sof + 1:
+                if not clock.due_by(sof + 1):
                     self._start = sof
                     best = self._pick(sof)
                     if best is not None:

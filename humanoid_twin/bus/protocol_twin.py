@@ -193,7 +193,9 @@ class Serial(SerialBase):
                 now = clock.now_us
                 if deadline is not None and now >= deadline:
                     break
-                nxt = link.next_host_byte_us()
+                # the stop bit of the last byte still missing, when it is on its way (the bytes
+                # before it arrive on the way: nothing else is waited for)
+                nxt = link.host_byte_us(size - len(self._rx))
                 target = nxt if nxt is not None and nxt > now else now + self._step_us
                 if deadline is not None and target > deadline:
                     target = deadline

@@ -197,6 +197,14 @@ class SerialLink:
         q = self._to_host.queue
         return q[0][0] if q else None
 
+    def host_byte_us(self, n: int) -> int | None:
+        """Stop-bit time of the ``n``-th byte (1-based) on its way to the host, or of the last
+        one when fewer are on their way; None when none is."""
+        q = self._to_host.queue
+        if not q:
+            return None
+        return q[n - 1][0] if n <= len(q) else q[-1][0]
+
     def host_out_waiting(self) -> int:
         """Bytes written by the host that have not reached the device yet."""
         return len(self._to_dev.queue)

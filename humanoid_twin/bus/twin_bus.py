@@ -14,6 +14,11 @@ that is not one of the network's nodes (a user script, a python-can tool) are ha
 network, which puts them on the wire in virtual time (arbitration, frame length), like any
 node's. The network's own nodes are delivered through ``deliver`` at the end of each frame.
 
+The wire's per-frame path goes through each bus's :class:`RxPort` (``TwinBus.port``; the
+compiled core makes it an extension type the wire calls directly): the routes of the frames the
+bus sends and the count of frames it only counts. ``TwinBus.deliver`` is that port's
+``deliver``.
+
 The delivery is zero-copy: every receiver gets the same :class:`can.Message` object. Treat a
 received message as read-only.
 """
@@ -119,6 +124,36 @@ def _copy(msg: can.Message) -> can.Message:
                        error_state_indicator=msg.error_state_indicator)
 
 
+class RxPort:
+    """A bus's side of the per-frame path: what the wire calls at the end of each frame the bus
+    sent, and what the other members' deliveries count for it.
+
+    ``routes``: standard ID -> (the receive interrupts of the members that take the bus's frame
+    with that ID, the ports of the members that only count it, outside their ``rx_ids``), kept
+    when every target has an interrupt (the common case: no per-member work per frame).
+    ``rx_skipped``: frames this bus's filters took outside its ``rx_ids`` (:attr:`TwinBus.rx_skipped`).
+    """
+
+    __slots__ = ("bus", "routes", "rx_skipped")
+
+    def __init__(self, bus: TwinBus) -> None:
+        self.bus = bus
+        self.routes: dict[int, tuple[tuple[RxCallback, ...], tuple[RxPort, ...]]] = {}
+        self.rx_skipped = 0
+
+    def deliver(self, msg: can.Message) -> None:
+        """:meth:`TwinBus.deliver`: hand ``msg`` (already on the wire) to every accepting member."""
+        route = None if msg.is_extended_id else self.routes.get(msg.arbitration_id)
+        if route is None:
+            self.bus._deliver_slow(msg)
+            return
+        cbs, skips = route
+        for cb in cbs:
+            cb(msg)
+        for p in skips:
+            p.rx_skipped += 1
+
+
 def active_channels() -> list[str]:
     """Names of the channels that have members or an owning network."""
     with _MEDIA_LOCK:
@@ -157,11 +192,10 @@ class TwinBus(BusABC):
         self.receive_own_messages = bool(receive_own_messages)
         self._rx_callback: RxCallback | None = rx_callback
         self._rx_ids: frozenset[int] | None = None if rx_ids is None else frozenset(rx_ids)
-        self.rx_skipped = 0         # accepted frames outside rx_ids: counted, not handed over
-        # standard ID -> the receive interrupts of the members that take this bus's frame with
-        # that ID (and the members that only count it, outside their rx_ids), when all of them
-        # have one (the common case: no per-member work per frame)
-        self._fast: dict[int, tuple[tuple[RxCallback, ...], tuple[TwinBus, ...]]] = {}
+        # the per-frame path: the routes of this bus's frames and its count of frames outside
+        # rx_ids (RxPort)
+        self.port = RxPort(self)
+        self.deliver = self.port.deliver
         self._queue: deque[can.Message] = deque()
         self._cond = threading.Condition()
         self._waiting = 0
@@ -189,7 +223,12 @@ class TwinBus(BusABC):
 
     def forget_routes(self) -> None:
         """Drop the cached delivery routes (the medium's members, filters or mutes changed)."""
-        self._fast.clear()
+        self.port.routes.clear()
+
+    @property
+    def rx_skipped(self) -> int:
+        """Accepted frames outside ``rx_ids``: counted, not handed to ``rx_callback``."""
+        return self.port.rx_skipped
 
     # -- filters -----------------------------------------------------------------------------
     def _apply_filters(self, filters: can.typechecking.CanFilters | None) -> None:
@@ -248,28 +287,29 @@ class TwinBus(BusABC):
         self.deliver(msg)
 
     def deliver(self, msg: can.Message) -> None:
-        """Hand ``msg`` (already on the wire) to every accepting member of the channel."""
+        """Hand ``msg`` (already on the wire) to every accepting member of the channel.
+
+        (The class's form, for the docs: each instance's ``deliver`` is its :attr:`port`'s,
+        which takes a route kept from an earlier frame, else this bus's ``_deliver_slow``.)"""
+        self.port.deliver(msg)
+
+    def _deliver_slow(self, msg: can.Message) -> None:
+        """:meth:`deliver` of a frame with no kept route: the medium's route, kept for the next
+        frame with this ID when every target has an interrupt, else each target served in turn."""
         extended = msg.is_extended_id
         arb = msg.arbitration_id
-        fast = None if extended else self._fast.get(arb)
-        if fast is None:
-            route = self._medium.route(arb, extended)
-            targets = [b for b in route if b is not self or self.receive_own_messages]
-            if not extended and all(b.rx_callback is not None for b in targets):
-                skips = tuple(b for b in targets if b.skips(arb))
-                fast = self._fast[arb] = (  # type: ignore[assignment]
-                    tuple(b.rx_callback for b in targets if b not in skips), skips)
-        if fast is not None:
-            cbs, skips = fast
-            for cb in cbs:
-                cb(msg)
-            for b in skips:
-                b.rx_skipped += 1
+        route = self._medium.route(arb, extended)
+        targets = [b for b in route if b is not self or self.receive_own_messages]
+        if not extended and all(b.rx_callback is not None for b in targets):
+            skips = tuple(b.port for b in targets if b.skips(arb))
+            self.port.routes[arb] = (
+                tuple(b.rx_callback for b in targets if b.port not in skips), skips)
+            self.port.deliver(msg)
             return
         for bus in targets:
             cb = bus.rx_callback
             if bus.skips(arb, extended):
-                bus.rx_skipped += 1
+                bus.port.rx_skipped += 1
             elif cb is not None:
                 cb(msg)
             else:

@@ -29,7 +29,7 @@ from humanoid_twin.protocol.canframes import (
     unpack_sensors1,
     unpack_sensors2,
 )
-from humanoid_twin.protocol.wire import node_name
+from humanoid_twin.protocol.wire import N_SCU, node_name
 
 if TYPE_CHECKING:
     from collections.abc import Callable
@@ -46,7 +46,8 @@ class MasterCan:
         self.db = db
         self.drivers = CanDrivers(network, name)
         self.rejected: list[tuple[int, int, str]] = []  # (t_us, id, reason), the last few rejected frames
-        self._tx_msgs: dict[int, can.Message] = {}   # scu * 2 + index -> its last actuation message
+        # scu * 2 + index -> its last actuation message (None: not requested yet)
+        self._tx_msgs: list[can.Message | None] = [None] * ((N_SCU + 1) * 2)
 
     def canInit(self, on_rx: Callable[[can.Message], None]) -> None:
         """``canInit`` (table 4): CAN peripheral with the Master's acceptance filters (slide 23:
@@ -86,7 +87,7 @@ class MasterCan:
         ctl = self.drivers.controller
         assert ctl is not None, "canInit attaches the controller before any canSendMsg"
         key = scu * 2 + index
-        msg = self._tx_msgs[key] = ctl.load_tx(self._tx_msgs.get(key), ACTUATION_IDS[scu][index], payload)
+        msg = self._tx_msgs[key] = ctl.load_tx(self._tx_msgs[key], ACTUATION_IDS[scu][index], payload)
         return msg
 
     def canAbort(self) -> None:

@@ -31,9 +31,8 @@ from humanoid_twin.master.pic import ROUND_US
 from humanoid_twin.protocol.canframes import SFLAGS2_LAW, SFLAGS_CAN_STATE
 from humanoid_twin.protocol.rs232 import PARAM_SPECIAL, SUPERVISOR_FAULTS, SUPERVISOR_MODES, Op
 from humanoid_twin.protocol.wire import (
-    MASTER_ADDRESS,
+    NODES,
     POS_LIMIT_DEG,
-    SCUS,
     STATUS_CALIB,
     STATUS_DEADLINE,
     STATUS_PWM,
@@ -90,8 +89,9 @@ def _support_margin(cops: list[tuple[int, int]]) -> float:
     if len(cops) == 1:
         x, y = cops[0]
         return min(x - SENSOR_X_MIN, SENSOR_X_MAX - x, y - SENSOR_Y_MIN, SENSOR_Y_MAX - y)
-    front = max(SENSOR_Y_MAX - y for _, y in cops)
-    back = max(y - SENSOR_Y_MIN for _, y in cops)
+    ys = [y for _, y in cops]
+    front = max([SENSOR_Y_MAX - y for y in ys])
+    back = max([y - SENSOR_Y_MIN for y in ys])
     return min(front, back)
 
 
@@ -157,10 +157,12 @@ class Supervisor:
         self.refused = 0                      # APPLY requests answered FC by the supervisor
         self.last_host_us = 0
         self._seen: set[tuple[int, int]] = set()
-        self._packets = {k: 0 for k in SCUS}
-        self._quiet_rounds = {k: 0 for k in (MASTER_ADDRESS, *SCUS)}
+        # per node, indexed by its address (0 the Master, 1..8 the Slaves; the Master's
+        # _packets and _deadline_since entries are unused)
+        self._packets = [0] * len(NODES)
+        self._quiet_rounds = [0] * len(NODES)
         self._master_sent = 0
-        self._deadline_since: dict[int, int | None] = {k: None for k in SCUS}
+        self._deadline_since: list[int | None] = [None] * len(NODES)
         self._balance_since: int | None = None
         self.reset_refused: str | None = None  # why the last reset was refused (None: it was not)
         # the leg boards' loads before calibration (counts) and the margin they gave (boot falls)
@@ -235,8 +237,7 @@ class Supervisor:
         self._seen.clear()
         # the silence counters run on through a reset: a board already quiet is not given
         # a fresh 3-round grace (docs/supervisor.md, "Reset")
-        for k in self._deadline_since:
-            self._deadline_since[k] = None
+        self._deadline_since[:] = [None] * len(NODES)
         self._balance_since = None
         self._set_mode(SELF_CHECK)
         return True
@@ -353,7 +354,15 @@ class Supervisor:
             c = self.foot_cop_mm(k)
             if c is not None:
                 cops.append(c)
-        return _support_margin(cops)
+        if not cops:
+            return -1.0
+        if len(cops) == 1:
+            x, y = cops[0]
+            return min(x - SENSOR_X_MIN, SENSOR_X_MAX - x, y - SENSOR_Y_MIN, SENSOR_Y_MAX - y)
+        ys = [y for _, y in cops]
+        front = max([SENSOR_Y_MAX - y for y in ys])
+        back = max([y - SENSOR_Y_MIN for y in ys])
+        return min(front, back)
 
     def boot_balance_margin_mm(self) -> float | None:
         """:meth:`balance_margin_mm` for standby and self_check, where a fall must be seen too

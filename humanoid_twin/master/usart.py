@@ -20,7 +20,6 @@ from functools import partial
 from typing import TYPE_CHECKING
 
 from humanoid_twin.master.database import Database
-from humanoid_twin.protocol import rs232
 from humanoid_twin.protocol.rs232 import (
     FRAME_LEN,
     MESSAGE_INVREQ,
@@ -43,6 +42,9 @@ from humanoid_twin.protocol.rs232 import (
     Op,
     Request,
     bcc,
+    data_response,
+    invalid_reason,
+    status_response,
 )
 from humanoid_twin.protocol.wire import ErrorState, from_s8, s8
 
@@ -198,15 +200,16 @@ class Usart:
     def usartSendStatus(self, status: int) -> None:
         """``usartSendStatus`` (table 3): the last request echoed with first byte ``status``
         (``MESSAGE_SUCCESS`` 0xFB or ``MESSAGE_INVREQ`` 0xFC), BCC recomputed."""
-        self._load_tx(rs232.status_response(self.ext_buf, status))
+        self._load_tx(status_response(self.ext_buf, status))
 
     def usartProcessMsg(self) -> None:
         """``usartProcessMsg`` (table 3): execute the request in the external buffer against the
         database and build its response in the TX buffer (docs/protocol.md section 1)."""
         frame = bytes(self.ext_buf)
         req = Request.decode(frame)
-        if not rs232.is_valid_request(req):
-            self.last_invalid = rs232.invalid_reason(req)
+        reason = invalid_reason(req)
+        if reason is not None:
+            self.last_invalid = reason
             self.db.counters.serial_frames_invalid += 1
             self.usartSendStatus(MESSAGE_INVREQ)
             return
@@ -260,9 +263,9 @@ class Usart:
             else:
                 assert param == PARAM_SPECIAL
                 sp = s.special
-                self._load_tx(rs232.data_response(sp[0], sp[1], sp[2], sp[3]))
+                self._load_tx(data_response(sp[0], sp[1], sp[2], sp[3]))
                 return
-            self._load_tx(rs232.data_response(s8(v[0]), s8(v[1]), s8(v[2]), s.status))
+            self._load_tx(data_response(s8(v[0]), s8(v[1]), s8(v[2]), s.status))
         else:
             assert op == _OP_MASTER
             if param == PARAM_TEST:
@@ -272,7 +275,7 @@ class Usart:
             else:
                 assert param == PARAM_CANSTATUS
                 err, tec, rec = self.can.error_status()
-                self._load_tx(rs232.data_response(err, tec, rec, db.answered_mask))
+                self._load_tx(data_response(err, tec, rec, db.answered_mask))
                 if err == ErrorState.BUS_OFF:
                     self.can.canClearStatus()
 
@@ -285,7 +288,7 @@ class Usart:
             self.usartSendStatus(MESSAGE_INVREQ)
             return
         if d1 == SUPERVISOR_READ:
-            self._load_tx(rs232.data_response(*sup.read()))
+            self._load_tx(data_response(*sup.read()))
             return
         if d1 == SUPERVISOR_ESTOP:
             sup.estop()

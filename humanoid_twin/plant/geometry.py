@@ -1,7 +1,8 @@
 """Planar geometry for the ground truth: support polygon (convex hull) and CoP margin.
 
 Pure Python on a handful of points (at most the 8 force-sensor pads): cheaper than numpy for
-such small inputs, and called only when the ground truth is recorded.
+such small inputs. Called at every sample of the run monitor (20 ms): each written as one loop
+with its formula inline, no call per point or edge.
 """
 
 from __future__ import annotations
@@ -21,29 +22,22 @@ def convex_hull(points: Sequence[Sequence[float]]) -> list[Point]:
     pts = sorted({(float(p[0]), float(p[1])) for p in points})
     if len(pts) <= 2:
         return pts
-
-    def cross(o: Point, a: Point, b: Point) -> float:
-        return (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])
-
-    lower: list[Point] = []
-    for p in pts:
-        while len(lower) >= 2 and cross(lower[-2], lower[-1], p) <= 0:
-            lower.pop()
-        lower.append(p)
-    upper: list[Point] = []
-    for p in reversed(pts):
-        while len(upper) >= 2 and cross(upper[-2], upper[-1], p) <= 0:
-            upper.pop()
-        upper.append(p)
-    return lower[:-1] + upper[:-1]
-
-
-def _segment_distance(p: Point, a: Point, b: Point) -> float:
-    ax, ay = a
-    dx, dy = b[0] - ax, b[1] - ay
-    den = dx * dx + dy * dy
-    t = 0.0 if den == 0.0 else max(0.0, min(1.0, ((p[0] - ax) * dx + (p[1] - ay) * dy) / den))
-    return math.hypot(p[0] - (ax + t * dx), p[1] - (ay + t * dy))
+    hull: list[Point] = []
+    for chain_pts in (pts, pts[::-1]):        # the lower chain, then the upper one
+        chain: list[Point] = []
+        for p in chain_pts:
+            bx, by = p
+            while len(chain) >= 2:
+                ox, oy = chain[-2]
+                ax, ay = chain[-1]
+                # o -> a -> b does not turn left (the cross product of o->a and o->b): drop a
+                if (ax - ox) * (by - oy) - (ay - oy) * (bx - ox) <= 0:
+                    chain.pop()
+                else:
+                    break
+            chain.append(p)
+        hull += chain[:-1]
+    return hull
 
 
 def signed_distance(point: Sequence[float], hull: Sequence[Point]) -> float:
@@ -55,20 +49,29 @@ def signed_distance(point: Sequence[float], hull: Sequence[Point]) -> float:
     """
     if not hull:
         return -math.inf
-    p = (float(point[0]), float(point[1]))
+    px, py = float(point[0]), float(point[1])
     n = len(hull)
     if n == 1:
-        return -math.hypot(p[0] - hull[0][0], p[1] - hull[0][1])
-    if n == 2:
-        return -_segment_distance(p, hull[0], hull[1])
+        return -math.hypot(px - hull[0][0], py - hull[0][1])
+    # the edges (a, b) of the polygon, the closing one first; a segment's one edge
+    edges = ((hull[0], hull[1]),) if n == 2 else zip((hull[-1], *hull[:-1]), hull, strict=True)
     inside = True
     nearest = math.inf
-    for k in range(n):
-        a = hull[k]
-        b = hull[(k + 1) % n]
-        ex, ey = b[0] - a[0], b[1] - a[1]
+    for (ax, ay), (bx, by) in edges:
+        ex, ey = bx - ax, by - ay
         # left of every edge of a counter-clockwise polygon = inside
-        if ex * (p[1] - a[1]) - ey * (p[0] - a[0]) < 0.0:
+        if ex * (py - ay) - ey * (px - ax) < 0.0:
             inside = False
-        nearest = min(nearest, _segment_distance(p, a, b))
+        # the distance to the segment: to its point nearest to p
+        den = ex * ex + ey * ey
+        t = 0.0
+        if den != 0.0:      # clamped to the segment, as max(0.0, min(1.0, t)) (NaN -> 1.0)
+            t = ((px - ax) * ex + (py - ay) * ey) / den
+            t = t if t < 1.0 else 1.0
+            t = t if t > 0.0 else 0.0
+        dist = math.hypot(px - (ax + t * ex), py - (ay + t * ey))
+        if n == 2:
+            return -dist
+        if dist < nearest:
+            nearest = dist
     return nearest if inside else -nearest

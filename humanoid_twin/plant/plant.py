@@ -42,6 +42,7 @@ FOOT_BODIES: tuple[str, str] = ("r_foot", "l_foot")
 PAD_SUFFIXES: tuple[str, str, str, str] = ("fl", "fr", "rl", "rr")   # table 12 order
 TILT_MAX_DEG = 45.0                # the platform tilts at most this far (either way)
 _TILT_MAX_DEG = TILT_MAX_DEG
+WXYZ_TO_XYZW = [1, 2, 3, 0]        # MuJoCo's quaternion order (w, x, y, z) to (x, y, z, w)
 _TILT_PROFILE_CHUNK_US = 10_000    # a tilt profile is re-evaluated at least every 10 ms
 _NOISE_BLOCK = 8192
 _GEOM_TYPES = {int(v): k for k, v in {
@@ -59,7 +60,6 @@ class PlantInputError(PlantError, ValueError):
     """A caller passed an invalid argument (SCU address, pulse width, tilt, ...)."""
 
 
-@dataclass(frozen=True)
 class GroundTruth:
     """What really happens in the plant at ``t_s`` (for recording and tests, never for firmware).
 
@@ -68,20 +68,80 @@ class GroundTruth:
     ``l_foot``; pad arrays follow table 12 order (front-left, front-right, rear-left, rear-right).
     Forces are the normal components of the MuJoCo contact forces of the pads (not the touch
     sensors).
+
+    Read-only. The balance figures (tilt, height, CoP margin, total force, ``fell``) are computed
+    at the sample; the rest (per-foot forces and CoPs, the joint angles, the polygon as an array,
+    the CoM) on first read, from what the plant copied at the sample (the loaded contacts, the
+    CoM, the joint positions and the soles' poses): a reader that only wants the balance (the
+    run monitor) does not pay for them.
     """
 
+    __slots__ = ("t_s", "trunk_tilt_deg", "trunk_height_m", "cop_margin_mm", "total_normal_force_n", "fell",
+                 "_derive", "_derived")
+
     t_s: float
-    com: np.ndarray                          # (3,) whole-robot centre of mass, world
     trunk_tilt_deg: float                    # angle between the trunk z axis and the vertical
     trunk_height_m: float                    # trunk origin height (0.29 m at the stand pose)
-    joint_angles_deg: dict[str, float]       # joint frame
-    pad_forces_n: dict[str, np.ndarray]      # (4,) per foot
-    foot_cop_mm: dict[str, np.ndarray | None]  # (2,) per foot in its foot frame; None unloaded
-    cop_world_xy: np.ndarray | None          # (2,) overall CoP; None when airborne
-    support_polygon_xy: np.ndarray           # (k, 2) convex hull of the pads in contact, CCW
     cop_margin_mm: float                     # signed distance of the CoP inside it; -inf airborne
     total_normal_force_n: float
     fell: bool
+
+    def __init__(self, t_s: float, trunk_tilt_deg: float, trunk_height_m: float, cop_margin_mm: float,
+                 total_normal_force_n: float, fell: bool, derive: Callable[[], tuple]) -> None:
+        init = object.__setattr__
+        init(self, "t_s", t_s)
+        init(self, "trunk_tilt_deg", trunk_tilt_deg)
+        init(self, "trunk_height_m", trunk_height_m)
+        init(self, "cop_margin_mm", cop_margin_mm)
+        init(self, "total_normal_force_n", total_normal_force_n)
+        init(self, "fell", fell)
+        init(self, "_derive", derive)
+        init(self, "_derived", None)
+
+    def __setattr__(self, name: str, value: Any) -> None:
+        raise AttributeError(f"GroundTruth is read-only (cannot set {name!r})")
+
+    def _fields(self) -> tuple:
+        got = self._derived
+        if got is None:
+            got = self._derive()
+            object.__setattr__(self, "_derived", got)
+        return got
+
+    @property
+    def com(self) -> np.ndarray:
+        """(3,) whole-robot centre of mass, world."""
+        return self._fields()[0]
+
+    @property
+    def joint_angles_deg(self) -> dict[str, float]:
+        """Every hinge joint's angle, joint frame, degrees."""
+        return self._fields()[1]
+
+    @property
+    def pad_forces_n(self) -> dict[str, np.ndarray]:
+        """(4,) per foot: the pads' normal contact forces (N)."""
+        return self._fields()[2]
+
+    @property
+    def foot_cop_mm(self) -> dict[str, np.ndarray | None]:
+        """(2,) per foot in its foot frame (mm); None when the foot is unloaded."""
+        return self._fields()[3]
+
+    @property
+    def cop_world_xy(self) -> np.ndarray | None:
+        """(2,) the whole robot's CoP (world, m); None when airborne."""
+        return self._fields()[4]
+
+    @property
+    def support_polygon_xy(self) -> np.ndarray:
+        """(k, 2) convex hull of the pads in contact, counter-clockwise (world, m)."""
+        return self._fields()[5]
+
+    def __repr__(self) -> str:
+        return (f"GroundTruth(t_s={self.t_s!r}, trunk_tilt_deg={self.trunk_tilt_deg!r}, "
+                f"trunk_height_m={self.trunk_height_m!r}, cop_margin_mm={self.cop_margin_mm!r}, "
+                f"total_normal_force_n={self.total_normal_force_n!r}, fell={self.fell!r})")
 
 
 @dataclass(frozen=True)
@@ -209,6 +269,7 @@ class Plant:
                 s = need(mujoco.mjtObj.mjOBJ_SENSOR, f"{foot}_{suffix}_touch")
                 adrs.append(int(m.sensor_adr[s]))
             self._touch_adr[foot] = tuple(adrs)  # type: ignore[assignment]
+        self._sole_sites = np.array([self._sole_site[foot] for foot in FOOT_BODIES], dtype=np.intp)
         self._foot_touch_of_scu = {scu: self._touch_adr[foot] for scu, foot in hardware.FOOT_OF_SCU.items()}
         hinges = [j for j in range(m.njnt) if m.jnt_type[j] == mujoco.mjtJoint.mjJNT_HINGE]
         self._joint_names = [m.joint(j).name for j in hinges]
@@ -582,8 +643,8 @@ class Plant:
 
     def _compute_truth(self) -> GroundTruth:
         d = self.data
-        trunk_z = d.xmat[self._trunk].reshape(3, 3)[:, 2]
-        tilt = math.degrees(math.acos(max(-1.0, min(1.0, float(trunk_z[2])))))
+        # the trunk z axis' vertical component: element (2, 2) of the trunk's rotation matrix
+        tilt = math.degrees(math.acos(max(-1.0, min(1.0, float(d.xmat[self._trunk, 8])))))
         height = float(d.xpos[self._trunk, 2])
 
         pids, fns, pts = self._loaded_contacts()
@@ -593,34 +654,35 @@ class Plant:
             pad_f[p] += f
             wx += f * xyz[0]
             wy += f * xyz[1]
-        foot_tot = [pad_f[0] + pad_f[1] + pad_f[2] + pad_f[3], pad_f[4] + pad_f[5] + pad_f[6] + pad_f[7]]
+        foot_tot = (pad_f[0] + pad_f[1] + pad_f[2] + pad_f[3], pad_f[4] + pad_f[5] + pad_f[6] + pad_f[7])
         total = foot_tot[0] + foot_tot[1]
-        foot_cop = {foot: (np.array(self._foot_cop(f, pids, fns, pts, foot_tot[f]))
-                           if foot_tot[f] > C.LOADED_MIN_N else None)
-                    for f, foot in enumerate(FOOT_BODIES)}
         hull = convex_hull(pts)
         if total > C.LOADED_MIN_N:
-            cop_xy = (wx / total, wy / total)
-            margin = signed_distance(cop_xy, hull) * 1000.0
-            cop = np.array(cop_xy)
+            cop_xy: tuple[float, float] | None = (wx / total, wy / total)
+            margin = signed_distance(cop_xy, hull) * 1000.0  # type: ignore[arg-type]
         else:
-            cop = None
+            cop_xy = None
             margin = -math.inf
-        return GroundTruth(
-            t_s=self.t_us / US_PER_S,
-            com=d.subtree_com[self._trunk].copy(),
-            trunk_tilt_deg=tilt,
-            trunk_height_m=height,
-            joint_angles_deg=dict(zip(self._joint_names,
-                                      (d.qpos[self._joint_qadr] * _DEG_PER_RAD).tolist(), strict=True)),
-            pad_forces_n={foot: np.array(pad_f[4 * f:4 * f + 4]) for f, foot in enumerate(FOOT_BODIES)},
-            foot_cop_mm=foot_cop,
-            cop_world_xy=cop,
-            support_polygon_xy=np.array(hull, dtype=float).reshape(-1, 2),
-            cop_margin_mm=margin,
-            total_normal_force_n=total,
-            fell=tilt > C.FELL_TILT_DEG or height < C.FELL_HEIGHT_M,
-        )
+        # what the other fields need, copied now (one copy each); they are derived on first read
+        com = d.subtree_com[self._trunk].copy()
+        qpos = d.qpos[self._joint_qadr]
+        sole_pos = d.site_xpos[self._sole_sites]
+        sole_mat = d.site_xmat[self._sole_sites]
+
+        def derive() -> tuple:
+            foot_cop = {foot: (np.array(_foot_cop(f, pids, fns, pts, foot_tot[f], sole_pos[f].tolist(),
+                                                  sole_mat[f].tolist()))
+                               if foot_tot[f] > C.LOADED_MIN_N else None)
+                        for f, foot in enumerate(FOOT_BODIES)}
+            return (com,
+                    dict(zip(self._joint_names, (qpos * _DEG_PER_RAD).tolist(), strict=True)),
+                    {foot: np.array(pad_f[4 * f:4 * f + 4]) for f, foot in enumerate(FOOT_BODIES)},
+                    foot_cop,
+                    None if cop_xy is None else np.array(cop_xy),
+                    np.array(hull, dtype=float).reshape(-1, 2))
+
+        return GroundTruth(self.t_us / US_PER_S, tilt, height, margin, total,
+                           tilt > C.FELL_TILT_DEG or height < C.FELL_HEIGHT_M, derive)
 
     def _loaded_contacts(self, foot: int = -1) -> tuple[list[int], list[float], list[list[float]]]:
         """Pad/ground contacts pressing on the pads (of foot index ``foot``, or of both): pad
@@ -636,11 +698,11 @@ class Plant:
             return pids, fns, pts
         con = d.contact
         pad = self._pad_list
-        geoms = con.geom[:n].tolist()
-        adrs = con.efc_address[:n].tolist()
-        dims = con.dim[:n].tolist()
-        pos = con.pos[:n].tolist()
-        ef = d.efc_force
+        geoms = con.geom.tolist()            # d.contact holds the ncon contacts, no more
+        adrs = con.efc_address.tolist()
+        dims = con.dim.tolist()
+        pos = con.pos.tolist()
+        ef: list[float] | None = None
         pyramidal = self._pyramidal
         for c in range(n):
             g0, g1 = geoms[c]
@@ -653,8 +715,9 @@ class Plant:
                 continue
             if pyramidal and dims[c] == 3:
                 # pyramidal cone: the normal force is the sum of the pyramid's edge forces
-                e = ef[a:a + 4].tolist()
-                f = e[0] + e[1] + e[2] + e[3]
+                if ef is None:
+                    ef = d.efc_force.tolist()
+                f = ef[a] + ef[a + 1] + ef[a + 2] + ef[a + 3]
             else:
                 mujoco.mj_contactForce(self.model, d, c, self._force6)
                 f = float(self._force6[0])
@@ -663,22 +726,6 @@ class Plant:
                 fns.append(f)
                 pts.append(pos[c])
         return pids, fns, pts
-
-    def _foot_cop(self, f: int, pids: list[int], fns: list[float], pts: list[list[float]],
-                  total: float) -> tuple[float, float]:
-        """CoP (foot frame, mm) of foot index ``f`` from the loaded contacts (``total``: its load):
-        the force-weighted mean contact point, in the sole site's frame."""
-        sx = sy = sz = 0.0
-        for p, fn, xyz in zip(pids, fns, pts, strict=True):
-            if p >> 2 == f:
-                sx += fn * xyz[0]
-                sy += fn * xyz[1]
-                sz += fn * xyz[2]
-        s = self._sole_site[FOOT_BODIES[f]]
-        o = self.data.site_xpos[s].tolist()
-        r = self.data.site_xmat[s].tolist()
-        vx, vy, vz = sx / total - o[0], sy / total - o[1], sz / total - o[2]
-        return ((vx * r[0] + vy * r[3] + vz * r[6]) * 1000.0, (vx * r[1] + vy * r[4] + vz * r[7]) * 1000.0)
 
     def foot_cop_mm(self, foot: str) -> np.ndarray | None:
         """Ground-truth CoP of one foot (foot frame, mm), None when unloaded: the part of
@@ -689,13 +736,25 @@ class Plant:
         f = FOOT_BODIES.index(foot)
         pids, fns, pts = self._loaded_contacts(f)
         tot = sum(fns)
-        return np.array(self._foot_cop(f, pids, fns, pts, tot)) if tot > C.LOADED_MIN_N else None
+        if not tot > C.LOADED_MIN_N:
+            return None
+        s = self._sole_site[foot]
+        d = self.data
+        return np.array(_foot_cop(f, pids, fns, pts, tot, d.site_xpos[s].tolist(), d.site_xmat[s].tolist()))
 
     def body_poses(self) -> tuple[tuple[str, ...], np.ndarray, np.ndarray]:
         """Names, world positions (n, 3) and quaternions (n, 4, xyzw) of every body but the world."""
         self._sync()
+        pos, quat = self.body_pose_views()
+        return self._body_names, pos.copy(), quat[:, WXYZ_TO_XYZW]     # (an index array copies)
+
+    def body_pose_views(self) -> tuple[np.ndarray, np.ndarray]:
+        """Live views (no copy) of the world positions (n, 3) and quaternions (n, 4, MuJoCo's order
+        w x y z; ``[:, WXYZ_TO_XYZW]`` gives x y z w) of every body but the world, in
+        :meth:`body_poses` order: they follow the plant as it steps, so a caller copies them at
+        the instant it wants (with the plant synced to its clock: after :meth:`truth`, say)."""
         d = self.data
-        return self._body_names, d.xpos[1:].copy(), d.xquat[1:][:, [1, 2, 3, 0]].copy()
+        return d.xpos[1:], d.xquat[1:]
 
     def geometry(self) -> list[GeomInfo]:
         """The geoms to draw: visual geoms (group 2), force-sensor pads, platform and floor.
@@ -751,3 +810,20 @@ _DEG_PER_RAD = 180.0 / math.pi
 _COUNTS_PER_N = 1.0 / hardware.FORCE_N_PER_COUNT
 _SIDES = {"r": "r_foot", "right": "r_foot", "r_foot": "r_foot",
           "l": "l_foot", "left": "l_foot", "l_foot": "l_foot"}
+
+
+def _foot_cop(f: int, pids: list[int], fns: list[float], pts: list[list[float]], total: float,
+              sole_pos: list[float], sole_mat: list[float]) -> tuple[float, float]:
+    """CoP (foot frame, mm) of foot index ``f`` from the loaded contacts (``total``: its load):
+    the force-weighted mean contact point, in the frame of the sole site (``sole_pos``: its world
+    position, ``sole_mat``: its rotation matrix, row-major)."""
+    sx = sy = sz = 0.0
+    for p, fn, xyz in zip(pids, fns, pts, strict=True):
+        if p >> 2 == f:
+            sx += fn * xyz[0]
+            sy += fn * xyz[1]
+            sz += fn * xyz[2]
+    o = sole_pos
+    r = sole_mat
+    vx, vy, vz = sx / total - o[0], sy / total - o[1], sz / total - o[2]
+    return ((vx * r[0] + vy * r[3] + vz * r[6]) * 1000.0, (vx * r[1] + vy * r[4] + vz * r[7]) * 1000.0)

@@ -174,14 +174,21 @@ def int_in_range(name: str, value: Any, lo: int, hi: int | None, what: str) -> i
     """``value`` as a plain int in ``lo..hi`` (``hi`` None: ``>= lo``; numpy integers accepted,
     floats not), else a readable ``ValueError`` naming ``name`` and ``what`` it is: the codecs'
     field check and the host toolbox's count check (``gate``, ``rate``, ``max_tries`` ...)."""
-    span = f"{lo}..{hi}" if hi is not None else f">= {lo}"
-    try:
-        v = operator.index(value)
-    except TypeError:
-        raise ValueError(f"{name} must be an integer {span} ({what}), got {value!r}") from None
+    if type(value) is int:
+        v = value
+    else:
+        try:
+            v = operator.index(value)
+        except TypeError:
+            raise ValueError(f"{name} must be an integer {_span(lo, hi)} ({what}), got {value!r}") from None
     if v < lo or (hi is not None and v > hi):
-        raise ValueError(f"{name} must be {span} ({what}), got {v}")
+        raise ValueError(f"{name} must be {_span(lo, hi)} ({what}), got {v}")
     return v
+
+
+def _span(lo: int, hi: int | None) -> str:
+    """``"lo..hi"``, or ``">= lo"`` when ``hi`` is None (the range in int_in_range's messages)."""
+    return f"{lo}..{hi}" if hi is not None else f">= {lo}"
 
 
 def s8(value: int) -> int:

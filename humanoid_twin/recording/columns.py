@@ -4,8 +4,12 @@ Each :class:`Column` says what is recorded (``names``: one series per value), wh
 rerun entity), in which unit, with which colours, and how it is sampled (``read``: a function of
 the :class:`Tick`, returning ``len(names)`` floats). The recorder derives everything from this
 one table: the static series styles, the buffer layout (one block of buffer columns per
-``Column``, in table order), the per-tick row and the ``send_columns`` batches. Adding a series is
-adding one ``Column``; nothing else has to be kept in the same order.
+``Column``), the per-tick row and the ``send_columns`` batches. Adding a series is adding one
+``Column``; nothing else has to be kept in the same order.
+
+A :class:`ColumnGroup` reads several consecutive columns of the table in one call (a board's
+servos, a foot, the robot's balance): the recorder calls its ``read`` once per row for all of
+them, each of its columns' own ``read`` takes its slice of it.
 
 The readers only read: Slave databases and firmware state, Master and bus counters, and the
 plant's ground truth (one ``truth()`` per tick, shared through the :class:`Tick`). They never
@@ -34,7 +38,7 @@ from humanoid_twin.recording.paths import (
     servo_path,
 )
 
-__all__ = ["Column", "Tick", "twin_columns", "RGB"]
+__all__ = ["Column", "ColumnGroup", "Tick", "twin_columns", "RGB"]
 
 RGB = tuple[int, int, int]
 
@@ -84,104 +88,172 @@ class Column:
         return len(self.names)
 
 
+class ColumnGroup:
+    """Consecutive columns of the table read together: ``read(tick)`` returns the values of all
+    of them, flat, in the order they were added with :meth:`column`; all share one ``every``.
+
+    The recorder calls ``read`` once per row for the whole group (one Python call instead of
+    one per column); each column's own ``read`` calls it and takes its slice (for a reader of
+    that one column alone).
+    """
+
+    __slots__ = ("read", "every", "columns", "width")
+
+    def __init__(self, read: Callable[[Tick], Sequence[float]], every: int = 1) -> None:
+        self.read = read
+        self.every = every
+        self.columns: list[Column] = []
+        self.width = 0
+
+    def column(self, path: str, names: tuple[str, ...], unit: str, colors: tuple[RGB, ...] | None = None,
+               sparse: bool = False) -> Column:
+        """Add the group's next column (its values follow the previous column's in ``read``)."""
+        start = self.width
+        self.width += len(names)
+        col = Column(path, names, unit, _GroupSlice(self, start, self.width), colors, sparse, self.every)
+        self.columns.append(col)
+        return col
+
+
+class _GroupSlice:
+    """One column's ``read`` in a :class:`ColumnGroup`: its slice of the group's values."""
+
+    __slots__ = ("group", "start", "stop")
+
+    def __init__(self, group: ColumnGroup, start: int, stop: int) -> None:
+        self.group = group
+        self.start = start
+        self.stop = stop
+
+    def __call__(self, t: Tick) -> Sequence[float]:
+        return list(self.group.read(t))[self.start:self.stop]
+
+
+def group_reader(cols: Sequence[Column], k: int) -> tuple[Callable[[Tick], Sequence[float]], int]:
+    """The reader of ``cols[k:]``'s first values: the whole group's ``read`` when ``cols[k]`` opens
+    a :class:`ColumnGroup` whose columns all follow it in ``cols``, else ``cols[k].read``; and how
+    many columns of ``cols`` it reads."""
+    r = cols[k].read
+    if isinstance(r, _GroupSlice) and r.start == 0:
+        group = r.group
+        m = len(group.columns)
+        if len(cols) - k >= m and all(a is b for a, b in zip(cols[k:k + m], group.columns, strict=True)):
+            return group.read, m
+    return r, 1
+
+
 class Tick:
     """What every reader of one sample shares: the time, the ground truth (read once), the
-    true servo angles and their finite-difference speed, and the per-tick rates' bases."""
+    true servo angles and their finite-difference speed (``true_deg`` / ``true_vel``, keyed by
+    ``(scu, servo)``; as lists in :func:`servo_keys` order: ``true`` / ``vel``), and the per-tick
+    rates' bases."""
 
-    __slots__ = ("twin", "now_us", "dt_us", "truth", "true_deg", "true_vel", "per_s")
+    __slots__ = ("twin", "now_us", "dt_us", "truth", "true", "vel", "per_s", "_signs", "_dicts")
 
     def __init__(self, twin: Any) -> None:
         self.twin = twin
         self.now_us = twin.clock.now_us
         self.dt_us = 0
         self.truth: Any = None
-        self.true_deg: dict[tuple[int, int], float] = {}
-        self.true_vel: dict[tuple[int, int], float] = {}
+        self.true: list[float] = []
+        self.vel: list[float] = []
         self.per_s = 0.0
+        self._signs: Sequence[tuple[tuple[int, int], str, int]] = ()
+        self._dicts: tuple[dict[tuple[int, int], float], dict[tuple[int, int], float]] | None = None
+
+    def _by_key(self) -> tuple[dict[tuple[int, int], float], dict[tuple[int, int], float]]:
+        if self._dicts is None:
+            keys = [key for key, _, _ in self._signs]
+            self._dicts = (dict(zip(keys, self.true, strict=True)), dict(zip(keys, self.vel, strict=True)))
+        return self._dicts
+
+    @property
+    def true_deg(self) -> dict[tuple[int, int], float]:
+        """True shaft angle (servo frame, degrees) of each recorded servo, by ``(scu, servo)``."""
+        return self._by_key()[0]
+
+    @property
+    def true_vel(self) -> dict[tuple[int, int], float]:
+        """Its change since the previous sample, per PWM period (0 at the first sample)."""
+        return self._by_key()[1]
 
 
 def _finite(x: float) -> float:
     return x if math.isfinite(x) else _NAN
 
 
-def _servo_columns(scu: int, slave: Any) -> list[Column]:
-    cols: list[Column] = []
-    for i in range(N_SERVOS):
-        sp = servo_path(scu, i)
-        key = (scu, i)
-
-        def position(t: Tick, slv: Any = slave, i: int = i, key: tuple[int, int] = key) -> Sequence[float]:
-            return (slv.actuators.servo[i].ref, slv.traj.position[i], slv.commanded[i],
-                    slv.sensors.servo[i].pos, t.true_deg[key])
-
-        def velocity(t: Tick, slv: Any = slave, i: int = i, key: tuple[int, int] = key) -> Sequence[float]:
-            return (slv.sensors.servo[i].vel, t.true_vel[key])
-
-        def current(t: Tick, slv: Any = slave, i: int = i) -> Sequence[float]:
-            return (slv.sensors.servo[i].current,)
-
-        cols += [
-            Column(f"{sp}/position", POSITION_SERIES, "deg (servo frame)", position, POSITION_COLOURS),
-            Column(f"{sp}/velocity", ("measured", "true"), "deg per PWM period", velocity, (ORANGE, GREEN)),
-            Column(f"{sp}/current", (f"{SERVO_JOINTS[scu][i]} ({i + 1})",), "ADC 0..100", current),
-        ]
-    return cols
-
-
-def _board_columns(scu: int, slave: Any) -> list[Column]:
+def _board_columns(scu: int, slave: Any, first: int) -> list[Column]:
+    """The columns of board ``scu``; ``first``: its servo 0's place in the tick's ``true`` list."""
     base = scu_path(scu)
 
-    def status(t: Tick, slv: Any = slave) -> Sequence[float]:
-        st = slv.sensors.sysStatus
-        return (st.pwm, st.calib)
+    def servos(t: Tick) -> Sequence[float]:
+        act = slave.actuators.servo
+        traj = slave.traj.position
+        commanded = slave.commanded
+        sensed = slave.sensors.servo
+        true = t.true
+        vel = t.vel
+        out: list[float] = []
+        for i in range(N_SERVOS):
+            s = sensed[i]
+            k = first + i
+            out += (act[i].ref, traj[i], commanded[i], s.pos, true[k],   # position (POSITION_SERIES)
+                    s.vel, vel[k],                                       # velocity
+                    s.current)                                           # current
+        return out
 
-    cols = [
-        *_servo_columns(scu, slave),
-        Column(f"{base}/status", ("pwm", "calibrated"), "flag", status, every=COUNTER_EVERY),
-        Column(f"{base}/deadline_violations", ("deadline violations",), "count",
-               lambda t, slv=slave: (slv.deadline_violations,), every=COUNTER_EVERY),
-    ]
+    servo = ColumnGroup(servos)
+    for i in range(N_SERVOS):
+        sp = servo_path(scu, i)
+        servo.column(f"{sp}/position", POSITION_SERIES, "deg (servo frame)", POSITION_COLOURS)
+        servo.column(f"{sp}/velocity", ("measured", "true"), "deg per PWM period", (ORANGE, GREEN))
+        servo.column(f"{sp}/current", (f"{SERVO_JOINTS[scu][i]} ({i + 1})",), "ADC 0..100")
+
+    def flags(t: Tick) -> Sequence[float]:
+        st = slave.sensors.sysStatus
+        return (st.pwm, st.calib, slave.deadline_violations)
+
+    counters = ColumnGroup(flags, every=COUNTER_EVERY)
+    counters.column(f"{base}/status", ("pwm", "calibrated"), "flag")
+    counters.column(f"{base}/deadline_violations", ("deadline violations",), "count")
+    cols = [*servo.columns, *counters.columns]
     foot = FOOT_OF_SCU.get(scu)
     if foot is None:
         return cols
 
-    def cop(axis: int, who: str) -> Callable[[Tick], Sequence[float]]:
-        if who == "firmware":
-            def read(t: Tick, slv: Any = slave) -> Sequence[float]:
-                if not slv.cop_loaded:
-                    return (_NAN,)
-                return (slv.cop_x if axis == 0 else slv.cop_y,)
+    def feet(t: Tick) -> Sequence[float]:
+        truth = t.truth
+        c = truth.foot_cop_mm[foot]
+        if slave.cop_loaded:
+            fx, fy = slave.cop_x, slave.cop_y
         else:
-            def read(t: Tick) -> Sequence[float]:
-                c = t.truth.foot_cop_mm[foot]
-                return (_NAN if c is None else c[axis],)
-        return read
+            fx = fy = _NAN
+        tx, ty = (_NAN, _NAN) if c is None else c.tolist()
+        return [*slave.sensors.special, *truth.pad_forces_n[foot].tolist(), fx, tx, fy, ty]
 
-    cols += [
-        Column(f"{base}/force/adc", SENSOR_NAMES, "8-bit ADC", lambda t, slv=slave: slv.sensors.special,
-               SENSOR_COLOURS),
-        Column(f"{base}/force/newton", SENSOR_NAMES, "N",
-               lambda t: t.truth.pad_forces_n[foot].tolist(), SENSOR_COLOURS),
-    ]
-    for a, axis in enumerate(("x", "y")):
-        cols += [
-            Column(f"{base}/cop/{axis}/firmware", ("firmware",), "mm", cop(a, "firmware"), (ORANGE,), True),
-            Column(f"{base}/cop/{axis}/truth", ("truth",), "mm", cop(a, "truth"), (GREEN,), True),
-        ]
-    return cols
+    group = ColumnGroup(feet)
+    group.column(f"{base}/force/adc", SENSOR_NAMES, "8-bit ADC", SENSOR_COLOURS)
+    group.column(f"{base}/force/newton", SENSOR_NAMES, "N", SENSOR_COLOURS)
+    for axis in ("x", "y"):
+        group.column(f"{base}/cop/{axis}/firmware", ("firmware",), "mm", (ORANGE,), True)
+        group.column(f"{base}/cop/{axis}/truth", ("truth",), "mm", (GREEN,), True)
+    return cols + group.columns
 
 
 def _robot_columns() -> list[Column]:
-    return [
-        Column(f"{ROBOT}/trunk_tilt_deg", ("trunk tilt",), "deg", lambda t: (t.truth.trunk_tilt_deg,)),
-        Column(f"{ROBOT}/com_height_mm", ("CoM height",), "mm", lambda t: (t.truth.com[2] * 1000.0,)),
-        Column(f"{ROBOT}/cop_margin_mm", ("CoP margin",), "mm",
-               lambda t: (_finite(t.truth.cop_margin_mm),), sparse=True),
-        Column(f"{ROBOT}/fell", ("fell",), "flag", lambda t: (t.truth.fell,), (RED,)),
-        Column(f"{ROBOT}/total_force_n", ("total normal force",), "N",
-               lambda t: (t.truth.total_normal_force_n,)),
-        Column(f"{ROBOT}/platform_tilt_deg", ("platform tilt",), "deg", lambda t: (t.twin.plant.tilt_deg,)),
-    ]
+    def balance(t: Tick) -> Sequence[float]:
+        truth = t.truth
+        return (truth.trunk_tilt_deg, truth.com[2] * 1000.0, _finite(truth.cop_margin_mm), truth.fell,
+                truth.total_normal_force_n, t.twin.plant.tilt_deg)
+
+    group = ColumnGroup(balance)
+    group.column(f"{ROBOT}/trunk_tilt_deg", ("trunk tilt",), "deg")
+    group.column(f"{ROBOT}/com_height_mm", ("CoM height",), "mm")
+    group.column(f"{ROBOT}/cop_margin_mm", ("CoP margin",), "mm", sparse=True)
+    group.column(f"{ROBOT}/fell", ("fell",), "flag", (RED,))
+    group.column(f"{ROBOT}/total_force_n", ("total normal force",), "N")
+    group.column(f"{ROBOT}/platform_tilt_deg", ("platform tilt",), "deg")
+    return group.columns
 
 
 class _BusRates:
@@ -191,39 +263,37 @@ class _BusRates:
         self.net = twin.network
         self.frames = self.net.frames_sent
         self.busy = getattr(self.net, "busy_us", 0)
+        self.at: int | None = None
+        self.last: tuple[float, float] = (0.0, 0.0)
 
     def read(self, t: Tick) -> Sequence[float]:
+        if t.now_us == self.at:        # read again in the same tick (a column's own read)
+            return self.last
         frames = self.net.frames_sent
         busy = getattr(self.net, "busy_us", 0)
         rate = (frames - self.frames) * t.per_s
         load = 100.0 * (busy - self.busy) / t.dt_us if t.dt_us > 0 else 0.0
         self.frames, self.busy = frames, busy
-        return (rate, load)
+        self.at, self.last = t.now_us, (rate, load)
+        return self.last
 
 
 def _bus_columns(twin: Any) -> list[Column]:
     net = twin.network
     ctl = twin.master.controller
     link = twin.link
-    rates = _BusRates(twin)
-    last = {"rate": (0.0, 0.0)}
-
-    def frames_per_s(t: Tick) -> Sequence[float]:
-        last["rate"] = rates.read(t)
-        return (last["rate"][0],)
-
+    rates = ColumnGroup(_BusRates(twin).read)
+    counters = ColumnGroup(lambda t: (net.error_frames, net.frames_dropped, ctl.error_state_code, ctl.tec,
+                                      ctl.rec, link.bytes_to_device, link.bytes_to_host), every=COUNTER_EVERY)
     return [
         Column(f"{CAN}/frames", ("frames",), "count", lambda t: (net.frames_sent,), every=COUNTER_EVERY),
-        Column(f"{CAN}/frames_per_s", ("frames/s",), "1/s", frames_per_s),
-        Column(f"{CAN}/load_percent", ("bus load",), "%", lambda t: (last["rate"][1],)),
-        Column(f"{CAN}/error_frames", ("error frames",), "count", lambda t: (net.error_frames,), (RED,),
-               every=COUNTER_EVERY),
-        Column(f"{CAN}/frames_dropped", ("frames dropped",), "count",
-               lambda t: (net.frames_dropped,), (ORANGE,), every=COUNTER_EVERY),
-        Column(f"{CAN}/master_controller", ("state (0 active, 1 passive, 2 off)", "TEC", "REC"),
-               "code / count", lambda t: (ctl.error_state_code, ctl.tec, ctl.rec), every=COUNTER_EVERY),
-        Column(f"{SERIAL}/bytes", ("to device", "to host"), "bytes",
-               lambda t: (link.bytes_to_device, link.bytes_to_host), every=COUNTER_EVERY),
+        rates.column(f"{CAN}/frames_per_s", ("frames/s",), "1/s"),
+        rates.column(f"{CAN}/load_percent", ("bus load",), "%"),
+        counters.column(f"{CAN}/error_frames", ("error frames",), "count", (RED,)),
+        counters.column(f"{CAN}/frames_dropped", ("frames dropped",), "count", (ORANGE,)),
+        counters.column(f"{CAN}/master_controller", ("state (0 active, 1 passive, 2 off)", "TEC", "REC"),
+                        "code / count"),
+        counters.column(f"{SERIAL}/bytes", ("to device", "to host"), "bytes"),
     ]
 
 
@@ -246,25 +316,22 @@ def master_groups(twin: Any) -> list[tuple[str, list[str]]]:
 
 def _master_columns(twin: Any, groups: list[tuple[str, list[str]]]) -> list[Column]:
     master = twin.master
-    cache: dict[str, Any] = {"at": None, "stats": {}}
+    keys = [k for _, ks in groups for k in ks]
 
-    def stats(t: Tick) -> dict[str, Any]:
-        if cache["at"] != t.now_us:          # one Master.stats() per tick for all its columns
-            cache["at"], cache["stats"] = t.now_us, master.stats()
-        return cache["stats"]
+    def stats(t: Tick) -> Sequence[float]:          # one Master.stats() per row for all its columns
+        st = master.stats()
+        return [st.get(k, _NAN) for k in keys]
 
-    return [
-        Column(path, tuple(keys), "count", lambda t, keys=tuple(keys): [stats(t).get(k, _NAN) for k in keys],
-               every=COUNTER_EVERY)
-        for path, keys in groups
-    ]
+    group = ColumnGroup(stats, every=COUNTER_EVERY)
+    return [group.column(path, tuple(ks), "count") for path, ks in groups]
 
 
 def twin_columns(twin: Any, scus: Sequence[int]) -> list[Column]:
     """The recording's column table for ``twin`` (boards ``scus``), in recording order."""
     cols: list[Column] = []
+    first = {key: k for k, key in enumerate(servo_keys(scus))}
     for scu in scus:
-        cols += _board_columns(scu, twin.slaves[scu])
+        cols += _board_columns(scu, twin.slaves[scu], first[(scu, 0)])
     cols += _robot_columns()
     cols += _bus_columns(twin)
     cols += _master_columns(twin, master_groups(twin))
@@ -278,26 +345,32 @@ def servo_signs(twin: Any, scus: Sequence[int]) -> list[tuple[tuple[int, int], s
     plant = twin.plant
     truth = plant.truth()
     out = []
-    for scu in scus:
-        for i in range(N_SERVOS):
-            joint = SERVO_JOINTS[scu][i]
-            sign = SERVO_SIGN[joint]
-            if abs(sign * truth.joint_angles_deg[joint] - plant.servo_angle_deg(scu, i)) > 1e-9:
-                raise ValueError(f"plant servo sign table disagrees with servo_angle_deg for {joint}")
-            out.append(((scu, i), joint, sign))
+    for scu, i in servo_keys(scus):
+        joint = SERVO_JOINTS[scu][i]
+        sign = SERVO_SIGN[joint]
+        if abs(sign * truth.joint_angles_deg[joint] - plant.servo_angle_deg(scu, i)) > 1e-9:
+            raise ValueError(f"plant servo sign table disagrees with servo_angle_deg for {joint}")
+        out.append(((scu, i), joint, sign))
     return out
+
+
+def servo_keys(scus: Sequence[int]) -> list[tuple[int, int]]:
+    """``(scu, servo)`` of every recorded servo, in the order of the tick's ``true`` / ``vel``."""
+    return [(scu, i) for scu in scus for i in range(N_SERVOS)]
 
 
 def start_tick(twin: Any, prev: Tick | None, signs: Sequence[tuple[tuple[int, int], str, int]]) -> Tick:
     """The shared state of a sample taken now (``prev``: the previous sample's, for rates)."""
     t = Tick(twin)
     t.truth = truth = twin.plant.truth()
-    t.dt_us = t.now_us - prev.now_us if prev is not None else 0
-    per_tick = PWM_PERIOD_US / t.dt_us if t.dt_us > 0 else 0.0
-    t.per_s = US_PER_S / t.dt_us if t.dt_us > 0 else 0.0
+    t._signs = signs
     joints = truth.joint_angles_deg
-    for key, joint, sign in signs:
-        true = sign * joints[joint]
-        t.true_deg[key] = true
-        t.true_vel[key] = (true - prev.true_deg[key]) * per_tick if prev is not None else 0.0
+    t.true = true = [sign * joints[joint] for _, joint, sign in signs]
+    if prev is None:
+        t.vel = [0.0] * len(true)
+        return t
+    t.dt_us = dt = t.now_us - prev.now_us
+    per_tick = PWM_PERIOD_US / dt if dt > 0 else 0.0
+    t.per_s = US_PER_S / dt if dt > 0 else 0.0
+    t.vel = [(deg - before) * per_tick for deg, before in zip(true, prev.true, strict=True)]
     return t

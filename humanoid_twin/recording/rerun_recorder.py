@@ -26,6 +26,7 @@ import contextlib
 import math
 import os
 import pathlib
+import struct
 import sys
 import threading
 import time
@@ -44,11 +45,13 @@ import rerun as rr  # noqa: E402
 from humanoid_twin import signals
 from humanoid_twin.clock import US_PER_S
 from humanoid_twin.hardware import FOOT_OF_SCU, N_SPECIAL_SENSORS, PWM_PERIOD_US
+from humanoid_twin.plant.plant import WXYZ_TO_XYZW
 from humanoid_twin.protocol.wire import SCUS
 from humanoid_twin.recording.blueprint import default_blueprint
 from humanoid_twin.recording.columns import (
     Column,
     Tick,
+    group_reader,
     master_groups,
     servo_signs,
     start_tick,
@@ -208,27 +211,32 @@ class Recorder:
         columns per :class:`Column`, in table order."""
         twin = self.twin
         plant = twin.plant
-        for attr in ("truth", "body_poses", "geometry", "servo_angle_deg", "tilt_deg"):
+        for attr in ("truth", "body_poses", "body_pose_views", "geometry", "servo_angle_deg", "tilt_deg"):
             if not hasattr(plant, attr):
                 raise RecorderError(f"the twin's plant has no {attr}(): cannot record ground truth")
         self._feet = [s for s in self.scus if s in FOOT_OF_SCU]
         self._master_paths = [p for p, _ in master_groups(twin)]
         self.columns: tuple[Column, ...] = (*twin_columns(twin, self.scus), *extra)
         seen: set[str] = set()
-        self._col: dict[str, int] = {}
-        col = 0
         for c in self.columns:
             if c.path in seen:
                 raise ValueError(f"two columns record {c.path!r}")
             if c.sparse and c.width != 1:
                 raise ValueError(f"column {c.path!r}: sparse columns have one series")
             seen.add(c.path)
+        # the buffer: one block of ``width`` buffer columns per Column, grouped by ``every`` (in
+        # table order within a group), so that the columns written on a row are one or a few
+        # contiguous runs, each packed in one call
+        self._buffer_order = sorted(self.columns, key=lambda c: c.every)
+        self._col: dict[str, int] = {}
+        col = 0
+        for c in self._buffer_order:
             self._col[c.path] = col
             col += c.width
         self._ncols = col
         # the readers of a row, by the set of Column.every values that divide its sample number
         # (a column written every k-th sample is only read then): built once per set
-        self._row_readers: dict[frozenset[int], tuple[list, np.ndarray | None, int]] = {}
+        self._row_readers: dict[frozenset[int], list[tuple[list, struct.Struct, int, int]]] = {}
         self._everys = sorted({c.every for c in self.columns})
         try:
             self._signs = servo_signs(twin, self.scus)
@@ -236,25 +244,38 @@ class Recorder:
             raise RecorderError(str(exc)) from None
         names, _, _ = plant.body_poses()
         self._body_names: tuple[str, ...] = tuple(names)
+        # copied into the buffer at each sample, after truth() has synced the plant
+        self._poses = plant.body_pose_views()
         self._platform = self._body_names.index("platform") if "platform" in self._body_names else None
         self._tick: Tick | None = None
 
-    def _readers_for(self, due: frozenset[int]) -> tuple[list, np.ndarray | None, int]:
-        """The readers of the columns written on a row whose sample number the ``every`` values
-        ``due`` divide, the buffer columns they fill (None: all) and how many."""
-        cols = [c for c in self.columns if c.every in due]
-        if len(cols) == len(self.columns):
-            return [c.read for c in cols], None, self._ncols
-        idx = [self._col[c.path] + j for c in cols for j in range(c.width)]
-        return [c.read for c in cols], np.array(idx, dtype=np.intp), len(idx)
+    def _readers_for(self, due: frozenset[int]) -> list[tuple[list, struct.Struct, int, int]]:
+        """The runs of buffer columns written on a row whose sample number the ``every`` values
+        ``due`` divide: for each, its readers (a :class:`ColumnGroup` read once for all its
+        columns), the packer of its values, its offset in the row (bytes) and its width."""
+        cols = [c for c in self._buffer_order if c.every in due]
+        runs = []
+        k = 0
+        while k < len(cols):
+            start = self._col[cols[k].path]
+            readers = []
+            width = 0
+            while k < len(cols) and self._col[cols[k].path] == start + width:
+                read, m = group_reader(cols, k)
+                readers.append(read)
+                width += sum(c.width for c in cols[k:k + m])
+                k += m
+            runs.append((readers, struct.Struct(f"={width}d"), start * _F64, width))
+        return runs
 
     def _alloc(self) -> None:
         rows, nb = self._rows, len(self._body_names)
         self._t = np.zeros(rows, dtype=np.int64)
         self._k = np.zeros(rows, dtype=np.int64)       # the sample's number (for Column.every)
         self._vals = np.zeros((rows, self._ncols), dtype=np.float64)
+        self._vals_bytes = memoryview(self._vals).cast("B")      # the rows, packed in place
         self._pos = np.zeros((rows, nb, 3), dtype=np.float64)
-        self._quat = np.zeros((rows, nb, 4), dtype=np.float64)
+        self._quat = np.zeros((rows, nb, 4), dtype=np.float64)  # MuJoCo's order (w, x, y, z)
         self._com = np.zeros((rows, 3), dtype=np.float64)
         self._cop3 = np.full((rows, 2), np.nan)
         self._poly: list[np.ndarray | None] = [None] * rows
@@ -276,7 +297,6 @@ class Recorder:
         if self._closed:
             return
         twin = self.twin
-        plant = twin.plant
         now = twin.clock.now_us
         w0 = time.perf_counter()
         i = self._n
@@ -285,23 +305,21 @@ class Recorder:
         tick = self._tick = start_tick(twin, self._tick, self._signs)
         k = self.samples
         due = frozenset(e for e in self._everys if k % e == 0)
-        row = self._row_readers.get(due)
-        if row is None:
-            row = self._row_readers[due] = self._readers_for(due)
-        readers, cols, width = row
-        vals: list[float] = []
-        ext = vals.extend
-        for read in readers:
-            ext(read(tick))
-        if len(vals) != width:
-            raise RecorderError(f"recorder bug: sampled {len(vals)} values for {width} columns")
-        if cols is None:
-            self._vals[i] = vals
-        else:
-            self._vals[i, cols] = vals
+        runs = self._row_readers.get(due)
+        if runs is None:
+            runs = self._row_readers[due] = self._readers_for(due)
+        row = i * self._ncols * _F64
+        for readers, packer, offset, width in runs:
+            vals: list[float] = []
+            ext = vals.extend
+            for read in readers:
+                ext(read(tick))
+            if len(vals) != width:
+                raise RecorderError(f"recorder bug: sampled {len(vals)} values for {width} columns")
+            packer.pack_into(self._vals_bytes, row + offset, *vals)
 
         truth = tick.truth
-        _, pos, quat = plant.body_poses()
+        pos, quat = self._poses
         self._pos[i] = pos
         self._quat[i] = quat
         self._com[i] = truth.com
@@ -389,13 +407,14 @@ class Recorder:
             rec.send_columns(s.path, indexes=idx_s, columns=[
                 rr.ComponentColumn(_D_SCALARS, _Arrow(data), offsets=_offsets(m, s.width))])
         unit = _offsets(n, 1)
+        quat = self._quat[:n][:, :, WXYZ_TO_XYZW]
         for b, name in enumerate(self._body_names):
             rec.send_columns(f"{BODIES}/{name}", indexes=idx, columns=[
                 rr.ComponentColumn(_D_TRANSLATION, _Arrow(_vec_array(self._pos[:n, b], _VEC3)), offsets=unit),
-                rr.ComponentColumn(_D_QUATERNION, _Arrow(_vec_array(self._quat[:n, b], _VEC4)), offsets=unit),
+                rr.ComponentColumn(_D_QUATERNION, _Arrow(_vec_array(quat[:, b], _VEC4)), offsets=unit),
             ])
         self._send_feet(idx, vals)
-        self._send_world(idx, n)
+        self._send_world(idx, n, quat)
 
     def _send_feet(self, idx: list, vals: np.ndarray) -> None:
         rec = self.rec
@@ -419,51 +438,53 @@ class Recorder:
                 _D_RADII2D, _Arrow(pa.array(radii.astype(np.float32).ravel())),
                 offsets=_offsets(len(forces), N_SPECIAL_SENSORS))])
 
-    def _send_world(self, idx: list, n: int) -> None:
+    def _send_world(self, idx: list, n: int, quat: np.ndarray) -> None:
         rec = self.rec
         unit = _offsets(n, 1)
         com = self._com[:n]
         ground = com.copy()
-        ground[:, 2] = self._platform_z(np.arange(n), com[:, :2])
+        ground[:, 2] = self._platform_z(np.arange(n), com[:, :2], quat)
         cop = self._cop3[:n]
         ok = ~np.isnan(cop[:, 0])
         cop_offsets = np.zeros(n + 1, dtype=np.int32)
         np.cumsum(ok, out=cop_offsets[1:])
-        cop_pts = np.column_stack([cop[ok], self._platform_z(np.flatnonzero(ok), cop[ok])])
+        cop_pts = np.column_stack([cop[ok], self._platform_z(np.flatnonzero(ok), cop[ok], quat)])
         for path, pts, offsets in ((f"{WORLD}/com", com, unit), (f"{WORLD}/com_ground", ground, unit),
                                    (f"{WORLD}/cop", cop_pts, cop_offsets)):
             rec.send_columns(path, indexes=idx, columns=[
                 rr.ComponentColumn(_D_POSITIONS3D, _Arrow(_vec_array(pts, _VEC3)), offsets=offsets)])
-        # support polygon: one closed line strip per row (none when nothing touches)
-        polys: list[np.ndarray] = []
-        rows_of: list[np.ndarray] = []
+        # support polygon: one line strip per row with 2 points or more (closed with more than
+        # 2), none for the others; all rows at once
+        polys = self._poly[:n]
+        k = np.array([len(p) for p in polys], dtype=np.intp)     # each row's hull points
+        has = k >= 2
+        m = np.where(has, k + (k > 2), 0)                           # its strip's points
         strip_offsets = np.zeros(n + 1, dtype=np.int32)
-        for r, poly in enumerate(self._poly[:n]):
-            if poly is not None and len(poly) >= 2:
-                p = np.asarray(poly, dtype=float)[:, :2]
-                if len(p) > 2:
-                    p = np.vstack([p, p[:1]])     # closed outline
-                polys.append(p)
-                rows_of.append(np.full(len(p), r))
-            strip_offsets[r + 1] = len(polys)
-        if polys:
-            xy = np.concatenate(polys)
-            xyz = np.column_stack([xy, self._platform_z(np.concatenate(rows_of), xy)])
+        np.cumsum(has, out=strip_offsets[1:])
+        total = int(m.sum())
+        if total:
+            hulls = np.concatenate(polys)                           # every row's points, in row order
+            first = np.cumsum(k) - k                                # each row's first point in them
+            row = np.repeat(np.arange(n), m)                        # the row of each strip point
+            j = np.arange(total) - np.repeat(np.cumsum(m) - m, m)   # its place in its strip
+            xy = hulls[first[row] + np.where(j < k[row], j, 0)]     # past the hull: its first point
+            xyz = np.column_stack([xy, self._platform_z(row, xy, quat)])
         else:
             xyz = np.zeros((0, 3))
-        point_offsets = np.zeros(len(polys) + 1, dtype=np.int32)
-        np.cumsum([len(p) for p in polys], out=point_offsets[1:])
+        point_offsets = np.zeros(int(has.sum()) + 1, dtype=np.int32)
+        np.cumsum(m[has], out=point_offsets[1:])
         strips = pa.ListArray.from_arrays(pa.array(point_offsets), _vec_array(xyz, _VEC3), type=_STRIP3)
         rec.send_columns(f"{WORLD}/support_polygon", indexes=idx, columns=[
             rr.ComponentColumn(_D_STRIPS3D, _Arrow(strips), offsets=strip_offsets)])
 
-    def _platform_z(self, rows: np.ndarray, xy: np.ndarray) -> np.ndarray:
+    def _platform_z(self, rows: np.ndarray, xy: np.ndarray, quat: np.ndarray) -> np.ndarray:
         """Height (m) of the platform's top surface under world points ``xy`` at buffered rows
-        ``rows`` (+1 mm so the drawing shows), from the platform body's recorded pose."""
+        ``rows`` (+1 mm so the drawing shows), from the platform body's recorded pose (``quat``:
+        the buffered quaternions, x y z w)."""
         if self._platform is None or len(rows) == 0:
             return np.full(len(rows), _ON_FLOOR_M)
         p0 = self._pos[rows, self._platform]
-        q = self._quat[rows, self._platform]
+        q = quat[rows, self._platform]
         x, y, z, w = q[:, 0], q[:, 1], q[:, 2], q[:, 3]
         nx = 2 * (x * z + y * w)          # third column of the rotation matrix: the surface normal
         ny = 2 * (y * z - x * w)
@@ -626,6 +647,7 @@ def _vec_array(x: np.ndarray, arrow_type: pa.DataType) -> pa.Array:
 
 
 _OFFSETS: dict[tuple[int, int], np.ndarray] = {}
+_F64 = 8              # bytes of a float64 (the buffer's rows are packed with struct)
 
 
 def _offsets(n: int, width: int) -> np.ndarray:

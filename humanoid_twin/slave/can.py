@@ -148,8 +148,7 @@ class SlaveCan:
             self.tx_silent += 1                    # PWM interference: no answer
             return
         due = now + ISR_LATENCY_US
-        nxt = self.clock.next_due_us()
-        if nxt is None or nxt > due:
+        if not self.clock.due_by(due):
             # nothing runs before the answer's TXREQ (no tick can change the packet, no frame
             # can supersede it): request it for that instant now, without an event
             self.sendCanMessage(index, due)
@@ -180,20 +179,20 @@ class SlaveCan:
         self.rx_packets += 1
         act.received += 1
         self.last_rx_us = self.clock.now_us
+        c0, c1, c2 = act.control
         if index == 0:
-            servo = act.servo
-            ctl = act.control
-            for i in range(3):
-                servo[i].ref = refs[i]
-                servo[i].speed = speeds[i]
+            a0, a1, a2 = act.servo
+            a0.ref, a1.ref, a2.ref = refs
+            a0.speed, a1.speed, a2.speed = speeds
             pwm, calib, types = parse_control_byte(control)
-            ctl[0].type, ctl[1].type, ctl[2].type = types
-            ctl[2].kd = kd3
-            if not pwm and act.sysStatus.pwm and self.on_stop is not None:
-                act.sysStatus.pwm = False
+            c0.type, c1.type, c2.type = types
+            c2.kd = kd3
+            sys_ = act.sysStatus
+            if not pwm and sys_.pwm and self.on_stop is not None:
+                sys_.pwm = False
                 self.on_stop()                     # PWM off now, not at the next tick
-            act.sysStatus.pwm = pwm
-            if calib and not act.sysStatus.calib:
+            sys_.pwm = pwm
+            if calib and not sys_.calib:
                 # Calib request 0 -> 1: a new calibration. Report "not calibrated" from this
                 # answer on, so the Master keeps asking until the new calibration is done.
                 self.calib_request = True
@@ -201,14 +200,12 @@ class SlaveCan:
                 if st.calib:
                     st.calib = False
                     self.prepareSensorPackets()
-            act.sysStatus.calib = calib
+            sys_.calib = calib
         else:
-            ctl = act.control
-            for i in range(3):
-                ctl[i].ki = ki[i]
-                ctl[i].kp = kp[i]
-            ctl[0].kd = kd1
-            ctl[1].kd = kd2
+            c0.ki, c1.ki, c2.ki = ki
+            c0.kp, c1.kp, c2.kp = kp
+            c0.kd = kd1
+            c1.kd = kd2
         return True
 
     def sendCanMessage(self, index: int, at_us: int = -1) -> None:
@@ -239,9 +236,9 @@ class SlaveCan:
         """Build both sensor packets from the sensor database (main loop, once per tick)."""
         s = self.db.sensors
         st = s.sysStatus
-        sv = s.servo
-        fin = st.motionFin
-        status = status_byte(st.pwm, st.calib, st.deadlineError, st.motionFinAll, st.motionFinOne, fin)
+        s0, s1, s2 = s.servo
+        status = status_byte(st.pwm, st.calib, st.deadlineError, st.motionFinAll, st.motionFinOne,
+                             st.motionFin)
         flags = SFLAGS_WATCHDOG if self.watchdog else 0
         c = self.controller
         if self.bus_off_seen:
@@ -249,9 +246,8 @@ class SlaveCan:
         elif c is not None:
             flags |= c.error_state_code
         self.payload[0] = pack_sensors1(
-            self.address, (sv[0].pos, sv[1].pos, sv[2].pos), (sv[0].vel, sv[1].vel, sv[2].vel), status,
-            flags,
+            self.address, (s0.pos, s1.pos, s2.pos), (s0.vel, s1.vel, s2.vel), status, flags,
         )
         self.payload[1] = pack_sensors2(
-            self.address, (sv[0].current, sv[1].current, sv[2].current), s.special, self.law_stopped
+            self.address, (s0.current, s1.current, s2.current), s.special, self.law_stopped
         )

@@ -221,8 +221,11 @@ class Pic2:
         adc = self.adc
         cur = self.current_us
         b_q = self.b_q
+        pos = self.pos
         for i in range(N_SERVOS):
-            p = (b_q[i] - adc[i] + _HALF_Q) >> _SHIFT_Q
+            b = b_q[i]
+            a = adc[i]
+            p = (b - a + _HALF_Q) >> _SHIFT_Q
             if p > 127:
                 p = 127
             elif p < -128:
@@ -230,10 +233,12 @@ class Pic2:
             self.raw_pos[i] = p
             if self.filter_on:
                 p = self.filter(i, p)
-            v = p - self.pos[i]
+            a = pos[i]
+            v = p - a
             self.vel[i] = 127 if v > 127 else -128 if v < -128 else v
-            self.pos[i] = p
-            c = (100 * cur[i]) // CURRENT_PULSE_FULL_US
+            pos[i] = p
+            w = cur[i]
+            c = (100 * w) // CURRENT_PULSE_FULL_US
             self.current[i] = 100 if c > 100 else 0 if c < 0 else c
 
     def filter(self, i: int, raw: int) -> int:

@@ -331,7 +331,7 @@ class ServoControl:
             t = mine[i]
             if done >> i & 1:
                 continue
-            servos = tuple(j for j in range(i, N_SERVOS) if mine[j] == t)
+            servos = tuple([j for j in range(i, N_SERVOS) if mine[j] == t])
             for j in servos:
                 done |= 1 << j
             law = self.law(t)
@@ -399,7 +399,8 @@ class ServoControl:
         inp.reference = tuple(self.reference)
         inp.output = tuple(self.output)
         if loaded:
-            inp.cop_mm = ((self.cop_f[0] + 128) >> 8, (self.cop_f[1] + 128) >> 8)
+            f0, f1 = self.cop_f
+            inp.cop_mm = ((f0 + 128) >> 8, (f1 + 128) >> 8)
             inp.cop_error_mm = self.copError()
         else:
             inp.cop_mm = None
@@ -407,7 +408,8 @@ class ServoControl:
         inp.cop_ref_mm = (self.cop_ref[0], self.cop_ref[1])
         if forces is not None:
             inp.forces = tuple(forces)
-        inp.gains = tuple((c.ki, c.kp, c.kd) for c in self.actuators.control)
+        c0, c1, c2 = self.actuators.control
+        inp.gains = ((c0.ki, c0.kp, c0.kd), (c1.ki, c1.kp, c1.kd), (c2.ki, c2.kp, c2.kd))
         return inp
 
     def filterCoP(self, cop_x: int, cop_y: int, loaded: bool) -> None:
@@ -425,14 +427,16 @@ class ServoControl:
             self.cop_f[1] = y8
             self.cop_primed = True
             return
-        self.cop_f[0] += (x8 - self.cop_f[0]) >> COP_FILTER_SHIFT
-        self.cop_f[1] += (y8 - self.cop_f[1]) >> COP_FILTER_SHIFT
+        f0, f1 = self.cop_f
+        self.cop_f[0] = f0 + ((x8 - f0) >> COP_FILTER_SHIFT)
+        self.cop_f[1] = f1 + ((y8 - f1) >> COP_FILTER_SHIFT)
 
     def copError(self) -> tuple[int, int]:
         """``e = CoP_ref - CoP_med`` in whole millimetres from the filtered CoP, with the dead
         band: an error within +-:data:`COP_DEAD_BAND_MM` is zero."""
-        ex = self.cop_ref[0] - ((self.cop_f[0] + 128) >> 8)
-        ey = self.cop_ref[1] - ((self.cop_f[1] + 128) >> 8)
+        f0, f1 = self.cop_f
+        ex = self.cop_ref[0] - ((f0 + 128) >> 8)
+        ey = self.cop_ref[1] - ((f1 + 128) >> 8)
         if -COP_DEAD_BAND_MM <= ex <= COP_DEAD_BAND_MM:
             ex = 0
         if -COP_DEAD_BAND_MM <= ey <= COP_DEAD_BAND_MM:

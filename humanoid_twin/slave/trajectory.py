@@ -121,8 +121,8 @@ class Trajectory:
             if tt >= t.period:
                 p = t.theta_final
             else:
-                c = t.coef
-                p = round_deg(c[0] + tt * (c[1] + tt * (c[2] + tt * c[3])))
+                c0, c1, c2, c3 = t.coef
+                p = round_deg(c0 + tt * (c1 + tt * (c2 + tt * c3)))
         self.position[i] = p
         return p
 

@@ -1,0 +1,12 @@
+# C declarations for twin_bus.py (the compiled core). TwinBus subclasses python-can's BusABC (a
+# Python class): it stays a Python class; its RxPort, the per-frame path, is an extension type
+# the wire (network.pxd) calls directly.
+cimport cython
+
+cdef class RxPort:
+    cdef public object bus
+    cdef public dict routes
+    cdef public long long rx_skipped
+
+    @cython.locals(route=object, cbs=tuple, skips=tuple, p=RxPort)
+    cpdef deliver(self, object msg)

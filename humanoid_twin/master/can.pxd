@@ -1,0 +1,41 @@
+# C declarations for can.py (the compiled core, docs/architecture.md): the same source, compiled.
+cimport cython
+
+from humanoid_twin.bus.network cimport CanController
+from humanoid_twin.clock cimport Clock
+from humanoid_twin.master.candrivers cimport CanDrivers
+from humanoid_twin.master.database cimport Database, MasterCounters, ScuActuation, ScuSensors
+from humanoid_twin.protocol.canframes cimport (
+    control_byte,
+    pack_actuation1,
+    pack_actuation2,
+    unpack_sensors1,
+    unpack_sensors2,
+)
+
+# constants of the per-packet path as C values (imported here; nobody imports them from here)
+cdef long long MASTER_ADDRESS, OP_SENSORS, SFLAGS_SUPERVISOR, STD_ID_MAX
+
+
+cdef class MasterCan:
+    cdef public Clock clock
+    cdef public Database db
+    cdef public CanDrivers drivers
+    cdef public list rejected
+    cdef public list _tx_msgs
+
+    cpdef canInit(self, object on_rx)
+    @cython.locals(a=ScuActuation, c=MasterCounters, ok=bint, kd=list)
+    cpdef bint canSendMsg(self, long long scu, long long index)
+    @cython.locals(ctl=CanController, key=cython.longlong)
+    cpdef object _message(self, long long scu, long long index, object payload)
+    cpdef canAbort(self)
+    @cython.locals(db=Database, c=MasterCounters, s=ScuSensors, ident=cython.longlong,
+                   src=cython.longlong, dst=cython.longlong, index=cython.longlong,
+                   op=cython.longlong, sf_src=cython.longlong)
+    cpdef bint canReceiveMsg(self)
+    @cython.locals(rejected=list)
+    cpdef bint _reject(self, long long ident, str reason)
+    cpdef canClearStatus(self)
+    @cython.locals(ctl=CanController)
+    cpdef tuple error_status(self)

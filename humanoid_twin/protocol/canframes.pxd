@@ -1,0 +1,32 @@
+# C declarations for canframes.py (the CAN payload codecs, the compiled core): the same source,
+# compiled. The codecs keep their Python API (the host, the recorder, the DBC script and the tests
+# call them); compiled boards cimport them for C calls:
+#
+#   from humanoid_twin.protocol.canframes cimport (unpack_actuation1, unpack_sensors1, ...)
+#
+# Arguments that Python callers may give as any sequence, or as values to be range-checked with
+# PayloadError (a byte 300, a negative address), stay ``object``: the checks and their messages
+# are the source's. Identifiers and bytes that are checked by C comparisons are C longs.
+cimport cython
+
+cpdef long can_id(object src, object dst, object index, object op) except? -1
+cpdef tuple split_id(object arbitration_id)
+cpdef long packet_index(long arbitration_id) except? -1
+cpdef long control_byte(object pwm, object calib, object types) except? -1
+cpdef tuple parse_control_byte(object b)
+cpdef long status_byte(object pwm, object calib, object deadline, object fin_all, object fin_one,
+                       object fin) except? -1
+cpdef object parse_status_byte(object b)
+cpdef long sflags(object src, object index) except? -1
+cpdef long _split_sflags(long sf, long index, str packet) except? -1
+cpdef bytes pack_actuation1(object refs, object speeds, object control, object kd3)
+cpdef tuple unpack_actuation1(object data)
+cpdef bytes pack_actuation2(object ki, object kp, object kd1, object kd2)
+cpdef tuple unpack_actuation2(object data)
+cpdef bytes pack_sensors1(object src, object pos, object speed, object status, object flags=*)
+@cython.locals(sf=cython.long)
+cpdef tuple unpack_sensors1(object data)
+cpdef tuple supervisor_flags(object data)
+cpdef bytes pack_sensors2(object src, object curr, object data4, object law_stopped=*)
+@cython.locals(sf=cython.long, c1=cython.long, c2=cython.long, c3=cython.long)
+cpdef tuple unpack_sensors2(object data)

@@ -1,0 +1,74 @@
+# C declarations for can.py (CAN and lowISR, the compiled core): the same source, compiled.
+# Virtual times and counters are C long long; the board's CAN controller is the wire's
+# CanController (bus/network.pxd: load_tx, send, send_at, abort, clear_status are C calls); the
+# payload codecs are cimported from protocol/canframes.pxd. Every field the recorder, the
+# supervisor tests and the fault tests read is public.
+cimport cython
+
+from humanoid_twin.bus.network cimport CanController
+from humanoid_twin.clock cimport Clock
+from humanoid_twin.protocol.canframes cimport (
+    pack_sensors1,
+    pack_sensors2,
+    parse_control_byte,
+    status_byte,
+    unpack_actuation1,
+    unpack_actuation2,
+)
+from humanoid_twin.slave.database cimport (
+    ActuatorServo,
+    ActuatorStatus,
+    Actuators,
+    Control,
+    Global,
+    Sensors,
+    SensorStatus,
+    StructServo,
+)
+
+cdef long PWM_BUSY_US
+cdef long PWM_PERIOD_US
+cdef long SFLAGS_WATCHDOG
+
+
+cdef class SlaveCan:
+    cdef public long address
+    cdef public Clock clock
+    cdef public Global db
+    cdef public long long phase_us
+    cdef public CanController controller
+    cdef public object node_name
+    cdef public list payload
+    cdef public bint calib_request
+    cdef public tuple _sensor_ids
+    cdef public dict _rx_index
+    cdef public list _tx_msgs
+    cdef public object _isr_send_cb
+    cdef public long _tx_index
+    cdef public long long _tx_due_us
+    cdef public long long rx_packets
+    cdef public long long _rx_ignored
+    cdef public long long rx_errors
+    cdef public long long tx_packets
+    cdef public long long tx_silent
+    cdef public long long bus_off_recoveries
+    cdef public long long last_rx_us
+    cdef public bint watchdog
+    cdef public bint law_stopped
+    cdef public bint bus_off_seen
+    cdef public object on_stop
+
+    @cython.locals(now=cython.longlong, due=cython.longlong)
+    cpdef lowISR(self, object msg)
+    cpdef _isr_send(self)
+    @cython.locals(act=Actuators, sys_=ActuatorStatus, st=SensorStatus, a0=ActuatorServo,
+                   a1=ActuatorServo, a2=ActuatorServo, c0=Control, c1=Control, c2=Control, pwm=bint,
+                   calib=bint)
+    cpdef bint receiveCanMessage(self, long index, object data) except -1
+    @cython.locals(controller=CanController)
+    cpdef sendCanMessage(self, long index, long long at_us=*)
+    @cython.locals(c=CanController)
+    cpdef bint checkCan(self) except -1
+    @cython.locals(s=Sensors, st=SensorStatus, s0=StructServo, s1=StructServo, s2=StructServo,
+                   status=cython.long, flags=cython.long, c=CanController)
+    cpdef prepareSensorPackets(self)
