@@ -21,7 +21,7 @@ from types import FrameType
 from typing import Any
 
 __all__ = ["Interrupted", "Terminated", "EXIT_CODES", "install", "restore", "deferred", "pending",
-           "exit_code", "is_signal", "on_hard_exit", "hard_exit"]
+           "exit_code", "is_signal", "signal_cause", "on_hard_exit", "hard_exit"]
 
 
 class Interrupted(KeyboardInterrupt):
@@ -76,6 +76,20 @@ def is_signal(exc: BaseException) -> bool:
     """True for the exceptions :func:`install`'s handlers raise (a real Ctrl-C or SIGTERM), as
     opposed to a ``KeyboardInterrupt`` raised by user code (a control law, a host controller)."""
     return isinstance(exc, (Interrupted, Terminated))
+
+
+def signal_cause(exc: BaseException) -> BaseException | None:
+    """The :class:`Interrupted` / :class:`Terminated` that ``exc`` was raised from, if any: a
+    signal landing in the import of an extension module (rerun, MuJoCo) comes out of it as an
+    ``ImportError: initialization failed`` caused by the signal's exception."""
+    seen = 0
+    cur: BaseException | None = exc
+    while cur is not None and seen < 20:
+        if is_signal(cur):
+            return cur
+        cur = cur.__cause__ or cur.__context__
+        seen += 1
+    return None
 
 
 def exit_code(exc: BaseException) -> int:

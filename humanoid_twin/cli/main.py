@@ -613,13 +613,26 @@ def main(argv: list[str] | None = None) -> int:
         args.run_args = extra
         handler = {"run": cmd_run, "serve": cmd_serve, "view": cmd_view, "sweep": cmd_sweep}[args.command]
         return handler(args)
+    except Exception as exc:
+        # a signal that landed in an extension module's import comes out wrapped (ImportError)
+        cause = signals.signal_cause(exc)
+        if cause is None:
+            raise
+        return _signalled(cause)
     except KeyboardInterrupt as exc:
-        why = "terminated (SIGTERM)" if isinstance(exc, signals.Terminated) else "interrupted"
-        with contextlib.suppress(OSError):
-            sys.stderr.write(f"humanoid-twin: {why}\n")
-        return signals.exit_code(exc)
+        return _signalled(exc)
     finally:
         signals.restore()
+
+
+def _signalled(exc: BaseException) -> int:
+    """One line for SIGINT / SIGTERM, and the exit code (130 / 143)."""
+    from humanoid_twin import signals
+
+    why = "terminated (SIGTERM)" if isinstance(exc, signals.Terminated) else "interrupted"
+    with contextlib.suppress(OSError):
+        sys.stderr.write(f"humanoid-twin: {why}\n")
+    return signals.exit_code(exc)
 
 
 if __name__ == "__main__":
