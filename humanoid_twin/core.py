@@ -65,6 +65,26 @@ def core_kind() -> str:
     return "compiled" if is_compiled(importlib.import_module(PROBE_MODULE)) else "python"
 
 
+def stale_modules(pkg: Path | None = None) -> list[str]:
+    """In a source tree (an editable install), the compiled modules older than their ``.py`` or
+    ``.pxd``: an edit not yet rebuilt (``python scripts/build_core.py``), which the compiled module
+    would silently ignore. Empty for an installed wheel and for the interpreted source. ``pkg``:
+    the package's folder (default: this package's)."""
+    pkg = Path(__file__).resolve().parent if pkg is None else pkg
+    if pure_python_requested() or not (pkg.parent / "setup.py").is_file():
+        return []
+    stale = []
+    for pxd in sorted(pkg.rglob("*.pxd")):
+        source = pxd.with_suffix(".py")
+        built = [p for p in pxd.parent.glob(pxd.stem + ".*") if p.suffix in (".so", ".pyd")]
+        if not built or not source.is_file():
+            continue
+        newest_source = max(source.stat().st_mtime, pxd.stat().st_mtime)
+        if newest_source > max(p.stat().st_mtime for p in built):
+            stale.append(".".join(source.relative_to(pkg.parent).with_suffix("").parts))
+    return stale
+
+
 def compiled_modules() -> list[str]:
     """The ``humanoid_twin`` modules loaded so far that run compiled."""
     return sorted(n for n, m in list(sys.modules.items())

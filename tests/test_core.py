@@ -77,3 +77,20 @@ def test_this_process_core_matches_the_switch():
     expected = "python" if core.pure_python_requested() or not _built() else "compiled"
     assert core.core_kind() == expected
     assert humanoid_twin.__version__
+
+
+def test_a_compiled_module_older_than_its_source_is_named(tmp_path):
+    pkg = tmp_path / "humanoid_twin"
+    (pkg / "bus").mkdir(parents=True)
+    (tmp_path / "setup.py").write_text("")
+    for name in ("clock", "bus/network"):
+        for suffix in (".py", ".pxd", ".cpython-311-x86_64-linux-gnu.so"):
+            (pkg / (name + suffix)).write_text("")
+    assert core.stale_modules(pkg) == [] or core.pure_python_requested()
+    source = pkg / "bus" / "network.py"
+    built = pkg / "bus" / "network.cpython-311-x86_64-linux-gnu.so"
+    os.utime(source, (built.stat().st_mtime + 10, built.stat().st_mtime + 10))
+    if not core.pure_python_requested():
+        assert core.stale_modules(pkg) == ["humanoid_twin.bus.network"]
+    (tmp_path / "setup.py").unlink()               # an installed package: never stale
+    assert core.stale_modules(pkg) == []

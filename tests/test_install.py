@@ -21,7 +21,7 @@ import pytest
 REPO = Path(__file__).resolve().parents[1]
 
 
-def _run(cmd: list[str], cwd: Path, timeout: float = 300,
+def _run(cmd: list[str], cwd: Path, timeout: float = 900,
          env: dict[str, str] | None = None) -> subprocess.CompletedProcess:
     env = {**{k: v for k, v in os.environ.items()
               if k not in ("PYTHONPATH", "VIRTUAL_ENV", "PYTHONHOME", "HUMANOID_TWIN_PURE_PYTHON")},

@@ -485,3 +485,47 @@ def test_bad_input_gets_clear_errors(tmp_path) -> None:
     other.write_text("<mujoco><worldbody><geom type='plane' size='1 1 1'/></worldbody></mujoco>")
     with pytest.raises(PlantError, match="no joint named"):
         Plant(other)
+
+
+# --- the ground truth: the figures of its instant, read then or later --------------------------------
+def _truth_fields(tr) -> list:
+    return [tr.t_s, tr.com, tr.trunk_tilt_deg, tr.trunk_height_m, tr.joint_angles_deg, tr.pad_forces_n,
+            tr.foot_cop_mm, tr.cop_world_xy, tr.support_polygon_xy, tr.cop_margin_mm,
+            tr.total_normal_force_n, tr.fell]
+
+
+def _same(a, b) -> bool:
+    if isinstance(a, dict):
+        return a.keys() == b.keys() and all(_same(a[k], b[k]) for k in a)
+    if isinstance(a, np.ndarray) or isinstance(b, np.ndarray):
+        return (a is None) == (b is None) and np.array_equal(a, b)
+    return a == b
+
+
+def test_truth_read_later_is_that_of_its_instant() -> None:
+    # the per-foot fields are derived on first read, from what the plant copied at the sample:
+    # a truth read after the plant moved on says what a truth read at once said
+    plants = [Plant(seed=1), Plant(seed=1)]
+    for p in plants:
+        Driver(p).ramp({"r_knee": 20.0, "r_hip_pitch": -10.0, "r_ankle_pitch": -10.0}, 0.4)
+    late, now = plants[0].truth(), plants[1].truth()
+    expected = _truth_fields(now)
+    for p in plants:
+        Driver(p).ramp({"l_hip_roll": 8.0}, 0.3)
+    assert all(_same(a, b) for a, b in zip(_truth_fields(late), expected, strict=True))
+    assert not _same(plants[0].truth().com, late.com)           # the plant did move on
+    assert late.foot_cop_mm["r_foot"] is not None and late.support_polygon_xy.shape[1] == 2
+    with pytest.raises(AttributeError):
+        late.fell = True                                        # read-only, as a frozen record
+    assert "GroundTruth(t_s=" in repr(late)
+
+
+def test_body_pose_views_follow_the_plant(standing) -> None:
+    p, drv = standing
+    names, pos, quat = p.body_poses()
+    vpos, vquat = p.body_pose_views()
+    assert np.array_equal(vpos, pos) and np.array_equal(vquat[:, [1, 2, 3, 0]], quat)
+    drv.ramp({"r_knee": 15.0}, 0.2)
+    _, pos2, quat2 = p.body_poses()
+    assert np.array_equal(vpos, pos2) and np.array_equal(vquat[:, [1, 2, 3, 0]], quat2)
+    assert not np.array_equal(pos, pos2)                        # body_poses copies, the views follow

@@ -31,7 +31,7 @@ from humanoid_twin.recording import (
     rrd_has_blueprint,
     verify_rrd,
 )
-from humanoid_twin.recording.columns import Column
+from humanoid_twin.recording.columns import Column, ColumnGroup
 from humanoid_twin.twin import Twin
 
 DURATION_US = 3_000_000
@@ -134,6 +134,57 @@ def test_extra_columns_are_recorded_and_slow_ones_read_only_on_their_rows(tmp_pa
     t, v = read_rrd_scalars(rrd, "user/slow")
     assert np.allclose(t, np.arange(11) * 0.1)
     assert v[:, 0].tolist() == list(range(1, 12)) and set(v[:, 1]) == {-1.0}
+
+
+def test_a_column_group_is_read_once_a_row_and_each_column_alone_reads_its_slice(tmp_path):
+    calls: list[int] = []
+
+    def read(t):
+        calls.append(t.now_us)
+        return (t.now_us / 1000.0, 1.0, 2.0, -t.now_us / 1000.0)
+
+    group = ColumnGroup(read)
+    a = group.column("user/a", ("t ms",), "ms")
+    b = group.column("user/b", ("one", "two"), "count")
+    c = group.column("user/c", ("minus t ms",), "ms")
+    rrd = tmp_path / "group.rrd"
+    with Twin(seed=0) as twin, Recorder(rrd, twin, columns=group.columns, chunk_s=0.3) as rec:
+        twin.advance_to(200_000)
+        tick = rec._tick
+        assert list(b.read(tick)) == [1.0, 2.0] and list(c.read(tick)) == [-200.0]
+        del calls[-2:]                                  # the two reads of the line above
+    assert calls == list(range(0, 200_001, 20_000))     # once a row for its three columns
+    assert [col.every for col in (a, b, c)] == [1, 1, 1]
+    t, v = read_rrd_scalars(rrd, "user/a")
+    assert np.allclose(v, t * 1000.0) and len(t) == 11
+    _, v = read_rrd_scalars(rrd, "user/b")
+    assert v.tolist() == [[1.0, 2.0]] * 11
+    t, v = read_rrd_scalars(rrd, "user/c")
+    assert np.allclose(v, -t * 1000.0)
+
+
+def test_support_polygon_strips_of_every_size(tmp_path):
+    # rows with 0, 1, 2 and 4 hull points: no strip, no strip, an open segment, a closed outline
+    from rerun.chunk import RrdReader
+
+    rrd = tmp_path / "poly.rrd"
+    hulls = [np.zeros((0, 2)), np.array([[0.1, 0.0]]), np.array([[0.0, 0.0], [0.1, 0.0]]),
+             np.array([[0.0, 0.0], [0.1, 0.0], [0.1, 0.05], [0.0, 0.05]])]
+    with Twin(seed=0) as twin, Recorder(rrd, twin, chunk_s=10.0) as rec:
+        twin.advance_to(60_000)                         # rows at 0, 20, 40, 60 ms
+        assert rec._n == 4
+        rec._poly[:4] = hulls
+    strips = {}
+    for chunk in RrdReader(rrd).stream():
+        if chunk.entity_path == "/world/support_polygon" and not chunk.is_static:
+            rb = chunk.to_record_batch()
+            times = rb.column(rb.schema.names.index("sim_time")).cast("int64").to_pylist()
+            rows = rb.column(rb.schema.names.index("LineStrips3D:strips")).to_pylist()
+            strips.update(zip(times, rows, strict=True))
+    got = [strips[t * 1_000_000] for t in (0, 20, 40, 60)]
+    assert got[0] == [] and got[1] == []
+    assert [[p[:2] for p in s] for s in got[2]] == [[pytest.approx([0.0, 0.0]), pytest.approx([0.1, 0.0])]]
+    assert len(got[3]) == 1 and len(got[3][0]) == 5 and got[3][0][0] == got[3][0][4]
 
 
 def test_rrd_passes_rerun_s_own_verification(run, tmp_path):

@@ -27,8 +27,9 @@ def cli(*args: str, cwd: str | None = None) -> subprocess.CompletedProcess:
 def test_version():
     r = cli("--version")
     assert r.returncode == 0
-    name, version = r.stdout.split()
+    name, version, core = r.stdout.strip().split(maxsplit=2)
     assert name == "humanoid-twin" and version[0].isdigit()
+    assert core in ("(core: compiled)", "(core: python)")   # which core runs (docs/architecture.md)
 
 
 def test_run_help_explains_each_scenario_its_defaults_and_gives_examples():

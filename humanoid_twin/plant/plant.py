@@ -20,7 +20,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 import mujoco
 import numpy as np
@@ -60,6 +60,17 @@ class PlantInputError(PlantError, ValueError):
     """A caller passed an invalid argument (SCU address, pulse width, tilt, ...)."""
 
 
+class PlainTruth(NamedTuple):
+    """The per-foot and polygon fields of a :class:`GroundTruth` as plain Python values (the same
+    numbers), for a reader that copies them elsewhere (the recorder): no arrays made and read
+    back. Feet in ``FOOT_BODIES`` order."""
+
+    pad_forces_n: list[float]                          # 8: each foot's four pads, table 12 order
+    foot_cop_mm: list[tuple[float, float] | None]      # per foot; None when unloaded
+    cop_world_xy: tuple[float, float] | None           # None when airborne
+    support_polygon_xy: list[tuple[float, float]]      # the hull, counter-clockwise
+
+
 class GroundTruth:
     """What really happens in the plant at ``t_s`` (for recording and tests, never for firmware).
 
@@ -70,14 +81,15 @@ class GroundTruth:
     sensors).
 
     Read-only. The balance figures (tilt, height, CoP margin, total force, ``fell``) are computed
-    at the sample; the rest (per-foot forces and CoPs, the joint angles, the polygon as an array,
-    the CoM) on first read, from what the plant copied at the sample (the loaded contacts, the
-    CoM, the joint positions and the soles' poses): a reader that only wants the balance (the
-    run monitor) does not pay for them.
+    at the sample; the rest (per-foot forces and CoPs, the joint angles, the polygon, the CoM)
+    on first read, from what the plant copied at the sample (the loaded contacts, the CoM, the
+    joint positions and the soles' poses): a reader that only wants the balance (the run
+    monitor) does not pay for them. :meth:`plain` gives the per-foot and polygon fields as
+    plain Python values.
     """
 
     __slots__ = ("t_s", "trunk_tilt_deg", "trunk_height_m", "cop_margin_mm", "total_normal_force_n", "fell",
-                 "_derive", "_derived")
+                 "_derive", "_derived", "_arrays")
 
     t_s: float
     trunk_tilt_deg: float                    # angle between the trunk z axis and the vertical
@@ -87,7 +99,8 @@ class GroundTruth:
     fell: bool
 
     def __init__(self, t_s: float, trunk_tilt_deg: float, trunk_height_m: float, cop_margin_mm: float,
-                 total_normal_force_n: float, fell: bool, derive: Callable[[], tuple]) -> None:
+                 total_normal_force_n: float, fell: bool,
+                 derive: Callable[[], tuple[np.ndarray, dict[str, float], PlainTruth]]) -> None:
         init = object.__setattr__
         init(self, "t_s", t_s)
         init(self, "trunk_tilt_deg", trunk_tilt_deg)
@@ -97,15 +110,32 @@ class GroundTruth:
         init(self, "fell", fell)
         init(self, "_derive", derive)
         init(self, "_derived", None)
+        init(self, "_arrays", None)
 
     def __setattr__(self, name: str, value: Any) -> None:
         raise AttributeError(f"GroundTruth is read-only (cannot set {name!r})")
 
-    def _fields(self) -> tuple:
+    def _fields(self) -> tuple[np.ndarray, dict[str, float], PlainTruth]:
         got = self._derived
         if got is None:
             got = self._derive()
             object.__setattr__(self, "_derived", got)
+        return got
+
+    def plain(self) -> PlainTruth:
+        """The per-foot forces and CoPs, the overall CoP and the polygon as plain Python values."""
+        return self._fields()[2]
+
+    def _array_fields(self) -> tuple:
+        got = self._arrays
+        if got is None:
+            pads, cops, cop, hull = self._fields()[2]
+            got = ({foot: np.array(pads[4 * f:4 * f + 4]) for f, foot in enumerate(FOOT_BODIES)},
+                   {foot: None if c is None else np.array(c)
+                    for foot, c in zip(FOOT_BODIES, cops, strict=True)},
+                   None if cop is None else np.array(cop),
+                   np.array(hull, dtype=float).reshape(-1, 2))
+            object.__setattr__(self, "_arrays", got)
         return got
 
     @property
@@ -121,22 +151,22 @@ class GroundTruth:
     @property
     def pad_forces_n(self) -> dict[str, np.ndarray]:
         """(4,) per foot: the pads' normal contact forces (N)."""
-        return self._fields()[2]
+        return self._array_fields()[0]
 
     @property
     def foot_cop_mm(self) -> dict[str, np.ndarray | None]:
         """(2,) per foot in its foot frame (mm); None when the foot is unloaded."""
-        return self._fields()[3]
+        return self._array_fields()[1]
 
     @property
     def cop_world_xy(self) -> np.ndarray | None:
         """(2,) the whole robot's CoP (world, m); None when airborne."""
-        return self._fields()[4]
+        return self._array_fields()[2]
 
     @property
     def support_polygon_xy(self) -> np.ndarray:
         """(k, 2) convex hull of the pads in contact, counter-clockwise (world, m)."""
-        return self._fields()[5]
+        return self._array_fields()[3]
 
     def __repr__(self) -> str:
         return (f"GroundTruth(t_s={self.t_s!r}, trunk_tilt_deg={self.trunk_tilt_deg!r}, "
@@ -269,7 +299,7 @@ class Plant:
                 s = need(mujoco.mjtObj.mjOBJ_SENSOR, f"{foot}_{suffix}_touch")
                 adrs.append(int(m.sensor_adr[s]))
             self._touch_adr[foot] = tuple(adrs)  # type: ignore[assignment]
-        self._sole_sites = np.array([self._sole_site[foot] for foot in FOOT_BODIES], dtype=np.intp)
+        self._sole_sites = [self._sole_site[foot] for foot in FOOT_BODIES]
         self._foot_touch_of_scu = {scu: self._touch_adr[foot] for scu, foot in hardware.FOOT_OF_SCU.items()}
         hinges = [j for j in range(m.njnt) if m.jnt_type[j] == mujoco.mjtJoint.mjJNT_HINGE]
         self._joint_names = [m.joint(j).name for j in hinges]
@@ -666,20 +696,15 @@ class Plant:
         # what the other fields need, copied now (one copy each); they are derived on first read
         com = d.subtree_com[self._trunk].copy()
         qpos = d.qpos[self._joint_qadr]
-        sole_pos = d.site_xpos[self._sole_sites]
-        sole_mat = d.site_xmat[self._sole_sites]
+        site_pos = d.site_xpos
+        site_mat = d.site_xmat
+        soles = [(site_pos[s].tolist(), site_mat[s].tolist()) for s in self._sole_sites]
 
-        def derive() -> tuple:
-            foot_cop = {foot: (np.array(_foot_cop(f, pids, fns, pts, foot_tot[f], sole_pos[f].tolist(),
-                                                  sole_mat[f].tolist()))
-                               if foot_tot[f] > C.LOADED_MIN_N else None)
-                        for f, foot in enumerate(FOOT_BODIES)}
-            return (com,
-                    dict(zip(self._joint_names, (qpos * _DEG_PER_RAD).tolist(), strict=True)),
-                    {foot: np.array(pad_f[4 * f:4 * f + 4]) for f, foot in enumerate(FOOT_BODIES)},
-                    foot_cop,
-                    None if cop_xy is None else np.array(cop_xy),
-                    np.array(hull, dtype=float).reshape(-1, 2))
+        def derive() -> tuple[np.ndarray, dict[str, float], PlainTruth]:
+            cops = [_foot_cop(f, pids, fns, pts, foot_tot[f], *soles[f])
+                    if foot_tot[f] > C.LOADED_MIN_N else None for f in range(len(FOOT_BODIES))]
+            return (com, dict(zip(self._joint_names, (qpos * _DEG_PER_RAD).tolist(), strict=True)),
+                    PlainTruth(pad_f, cops, cop_xy, hull))
 
         return GroundTruth(self.t_us / US_PER_S, tilt, height, margin, total,
                            tilt > C.FELL_TILT_DEG or height < C.FELL_HEIGHT_M, derive)
@@ -696,9 +721,9 @@ class Plant:
         pts: list[list[float]] = []
         if not n:
             return pids, fns, pts
-        con = d.contact
+        con = d.contact                      # the ncon contacts, no more
         pad = self._pad_list
-        geoms = con.geom.tolist()            # d.contact holds the ncon contacts, no more
+        geoms = con.geom.tolist()
         adrs = con.efc_address.tolist()
         dims = con.dim.tolist()
         pos = con.pos.tolist()

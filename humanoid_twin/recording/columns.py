@@ -26,7 +26,7 @@ from typing import Any
 
 from humanoid_twin.clock import US_PER_S
 from humanoid_twin.hardware import FOOT_OF_SCU, N_SERVOS, PWM_PERIOD_US, SERVO_JOINTS
-from humanoid_twin.plant import SERVO_SIGN
+from humanoid_twin.plant import FOOT_BODIES, SERVO_SIGN
 from humanoid_twin.recording.paths import (
     CAN,
     MASTER,
@@ -221,15 +221,17 @@ def _board_columns(scu: int, slave: Any, first: int) -> list[Column]:
     if foot is None:
         return cols
 
+    f = FOOT_BODIES.index(foot)
+
     def feet(t: Tick) -> Sequence[float]:
-        truth = t.truth
-        c = truth.foot_cop_mm[foot]
+        truth = t.truth.plain()
         if slave.cop_loaded:
             fx, fy = slave.cop_x, slave.cop_y
         else:
             fx = fy = _NAN
-        tx, ty = (_NAN, _NAN) if c is None else c.tolist()
-        return [*slave.sensors.special, *truth.pad_forces_n[foot].tolist(), fx, tx, fy, ty]
+        c = truth.foot_cop_mm[f]
+        tx, ty = (_NAN, _NAN) if c is None else c
+        return [*slave.sensors.special, *truth.pad_forces_n[4 * f:4 * f + 4], fx, tx, fy, ty]
 
     group = ColumnGroup(feet)
     group.column(f"{base}/force/adc", SENSOR_NAMES, "8-bit ADC", SENSOR_COLOURS)

@@ -278,7 +278,7 @@ class Recorder:
         self._quat = np.zeros((rows, nb, 4), dtype=np.float64)  # MuJoCo's order (w, x, y, z)
         self._com = np.zeros((rows, 3), dtype=np.float64)
         self._cop3 = np.full((rows, 2), np.nan)
-        self._poly: list[np.ndarray | None] = [None] * rows
+        self._poly: list[Sequence[Sequence[float]]] = [()] * rows      # each row's hull points
 
     # -- static content ------------------------------------------------------------------------------
     def _log_static(self) -> None:
@@ -323,9 +323,10 @@ class Recorder:
         self._pos[i] = pos
         self._quat[i] = quat
         self._com[i] = truth.com
-        cw = truth.cop_world_xy
+        plain = truth.plain()
+        cw = plain.cop_world_xy
         self._cop3[i] = math.nan if cw is None else cw
-        self._poly[i] = truth.support_polygon_xy
+        self._poly[i] = plain.support_polygon_xy
         self._n = i + 1
         self.samples += 1
         self.wall_s += time.perf_counter() - w0
@@ -463,7 +464,7 @@ class Recorder:
         np.cumsum(has, out=strip_offsets[1:])
         total = int(m.sum())
         if total:
-            hulls = np.concatenate(polys)                           # every row's points, in row order
+            hulls = np.array([pt for poly in polys for pt in poly], dtype=float)   # every row's points
             first = np.cumsum(k) - k                                # each row's first point in them
             row = np.repeat(np.arange(n), m)                        # the row of each strip point
             j = np.arange(total) - np.repeat(np.cumsum(m) - m, m)   # its place in its strip
