@@ -27,6 +27,7 @@ from typing import Any
 
 from humanoid_twin import host as _host
 from humanoid_twin.cli.argtypes import checked
+from humanoid_twin.containment import describe, user_fault
 from humanoid_twin.host.timebase import now as host_now
 from humanoid_twin.host.timebase import sleep as host_sleep
 from humanoid_twin.monitor import Monitor
@@ -139,15 +140,29 @@ def run_host_controller(H: Any, step: HostStep, monitor: Monitor, until_s: float
     raised again as :class:`RuntimeError` naming the function."""
     period = period_ms / 1000.0
     ctx = HostContext(H, HostToolbox(H), monitor, period)
+    try:
+        _host_loop(ctx, step, until_s, period, should_stop)
+    except BaseException as exc:
+        exc.host_context = ctx       # type: ignore[attr-defined]  # the calls so far, for the summary
+        raise
+    return ctx
+
+
+def _host_loop(ctx: HostContext, step: HostStep, until_s: float, period: float,
+               should_stop: Callable[[], bool] | None) -> None:
+    H = ctx.H
     next_t = host_now(H)
     while next_t < until_s - 1e-9:
         if should_stop is not None and should_stop():
             break
         try:
             step(ctx)
-        except Exception as exc:   # a user's function: report it by name
-            raise RuntimeError(f"host controller {_name_of(step)} raised {type(exc).__name__} at "
-                               f"t={host_now(H):.3f} s (call {ctx.calls}): {exc}") from exc
+        except BaseException as exc:   # a user's function (SystemExit included): report it by name
+            if not user_fault(exc):
+                raise                  # a real signal, or the twin's own end of the run
+            kind, _, message = describe(exc).partition(": ")
+            raise RuntimeError(f"host controller {_name_of(step)[:120]} raised {kind} at "
+                               f"t={host_now(H):.3f} s (call {ctx.calls}): {message}") from None
         ctx.calls += 1
         next_t += period
         now = host_now(H)
@@ -159,7 +174,6 @@ def run_host_controller(H: Any, step: HostStep, monitor: Monitor, until_s: float
     rest = until_s - host_now(H)
     if rest > 0:
         host_sleep(H, rest)
-    return ctx
 
 
 # ---------------------------------------------------------------------------------------------

@@ -29,6 +29,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 from humanoid_twin.clock import US_PER_S
+from humanoid_twin.fault_compose import check_composition, effective, target_of
 from humanoid_twin.hardware import FOOT_OF_SCU, N_SERVOS, PWM_PERIOD_US
 from humanoid_twin.master.pic import ROUND_US
 from humanoid_twin.protocol.wire import node_error, node_name, scu_error
@@ -57,7 +58,14 @@ KINDS: dict[str, str] = {
     "push": "NEWTONS",
 }
 
-_SPEC = re.compile(r"^(?P<kind>[a-z-]+)(?::(?P<arg>[^@]*))?(?:@(?P<t0>[^-]*)(?:-(?P<t1>.*))?)?$")
+_SPEC = re.compile(r"^(?P<kind>[a-z-]+)(?::(?P<arg>[^@]*))?(?:@(?P<times>.*))?$")
+# numbers as the docs write them, ASCII digits only (1, 0.5, .5, 1e-3, 2.5E+1), and the time
+# range T0-T1 split at the '-' that is not an exponent's sign
+_NUM = r"[+-]?(?:\d+(?:\.\d*)?|\.\d+)(?:[eE][+-]?\d+)?"
+_NUMBER = re.compile(rf"^{_NUM}$", re.ASCII)
+_INTEGER = re.compile(r"^[+-]?\d+$", re.ASCII)
+_TIMES = re.compile(rf"^(?P<t0>{_NUM})(?:-(?P<t1>{_NUM}))?$", re.ASCII)
+MAX_FAULT_S = 86_400.0       # T0 and T1 within one simulated day (run's --duration bound)
 
 
 class FaultSpecError(ValueError):
@@ -86,20 +94,18 @@ def _bad(text: str, why: str) -> FaultSpecError:
 
 
 def _number(text: str, s: str, what: str) -> float:
-    try:
-        v = float(s)
-    except ValueError:
-        raise _bad(text, f"{what} must be a number, got {s!r}") from None
+    if not _NUMBER.match(s.strip()):
+        raise _bad(text, f"{what} must be a number, got {s!r}")
+    v = float(s)
     if not math.isfinite(v):
         raise _bad(text, f"{what} must be finite, got {s!r}")
     return v
 
 
 def _int(text: str, s: str, what: str, lo: int, hi: int) -> int:
-    try:
-        v = int(s)
-    except ValueError:
-        raise _bad(text, f"{what} must be an integer {lo}..{hi}, got {s!r}") from None
+    if not _INTEGER.match(s.strip()):
+        raise _bad(text, f"{what} must be an integer {lo}..{hi}, got {s!r}")
+    v = int(s)
     if not lo <= v <= hi:
         raise _bad(text, f"{what} must be {lo}..{hi}, got {v}")
     return v
@@ -108,10 +114,7 @@ def _int(text: str, s: str, what: str, lo: int, hi: int) -> int:
 def _address(text: str, s: str, what: str, error: Callable[[Any, str], str | None]) -> int:
     """``s`` as a node or SCU address, checked by the protocol's ``error`` (``scu_error`` or
     ``node_error``); a :class:`FaultSpecError` naming ``what`` otherwise."""
-    try:
-        v: Any = int(s)
-    except ValueError:
-        v = s                               # the check names it: "must be an integer ..."
+    v: Any = int(s) if _INTEGER.match(s.strip()) else s   # else the check names it (ASCII digits only)
     reason = error(v, what)
     if reason is not None:
         raise _bad(text, reason)
@@ -123,7 +126,14 @@ def parse_fault(text: str) -> FaultSpec:
     m = _SPEC.match(text.strip())
     if m is None:
         raise _bad(text, "expected KIND[:ARG][@T0[-T1]]")
-    kind, arg_s, t0_s, t1_s = m["kind"], m["arg"], m["t0"], m["t1"]
+    kind, arg_s, times = m["kind"], m["arg"], m["times"]
+    t0_s = t1_s = None
+    if times is not None:
+        tm = _TIMES.match(times.strip())
+        if tm is None:
+            raise _bad(text, f"expected @T0 or @T0-T1 in simulated seconds (e.g. @3, @1e-3, @2-4.5), "
+                       f"got @{times}")
+        t0_s, t1_s = tm["t0"], tm["t1"]
     if kind not in KINDS:
         raise _bad(text, f"unknown kind {kind!r} (one of {', '.join(KINDS)})")
     if arg_s is None or arg_s == "":
@@ -158,10 +168,14 @@ def parse_fault(text: str) -> FaultSpec:
         t0 = _number(text, t0_s, "T0")
         if t0 < 0:
             raise _bad(text, f"T0 must be >= 0 s, got {t0_s}")
+        if t0 > MAX_FAULT_S:
+            raise _bad(text, f"T0 must be at most {MAX_FAULT_S:g} s (one simulated day), got {t0_s}")
         if t1_s is not None:
             t1 = _number(text, t1_s, "T1")
             if t1 <= t0:
                 raise _bad(text, f"T1 must be after T0, got {t0_s}-{t1_s}")
+            if t1 > MAX_FAULT_S:
+                raise _bad(text, f"T1 must be at most {MAX_FAULT_S:g} s (one simulated day), got {t1_s}")
     if kind == "push" and t1 is not None:
         raise _bad(text, "a push lasts 100 ms: give its start only, push:NEWTONS@T0")
     return FaultSpec(kind, arg, t0, t1, text.strip())
@@ -180,6 +194,10 @@ class FaultInjector:
         self.listeners: list[Callable[[int, str, FaultSpec], None]] = []
         self._can = {"can-drop": 0.0, "can-corrupt": 0.0}
         self._changes = 0
+        self.active: list[FaultSpec] = []     # started and not ended (humanoid_twin/fault_compose.py)
+        self.started: list[FaultSpec] = []    # every fault that started, in order
+        self._on: dict[tuple[str, Any], bool] = {}
+        check_composition(self.specs)
 
     def install(self) -> FaultInjector:
         """Schedule every fault's start (and end) on the twin's clock."""
@@ -205,30 +223,65 @@ class FaultInjector:
                                      seed=self.seed * 7919 + self._changes)
 
     def _start(self, spec: FaultSpec) -> None:
+        self.active.append(spec)
+        self.started.append(spec)
+        if spec.kind == "bus-off":
+            self._bus_off(spec)
+        elif spec.kind == "deadline":
+            self._deadline(spec.arg)
+        else:
+            self._apply(spec)
+        self._note("start", spec)
+
+    def _end(self, spec: FaultSpec) -> None:
+        if spec in self.active:
+            self.active.remove(spec)
+        # bus-off: the re-forcing stops at T1 and the node recovers as its firmware does;
+        # deadline: the injected ticks run out at the last active end
+        if spec.kind not in ("bus-off", "deadline"):
+            self._apply(spec)
+        self._note("end", spec)
+
+    def _apply(self, spec: FaultSpec) -> None:
+        """Give the twin what the active set now makes of ``spec``'s kind on ``spec``'s target
+        (humanoid_twin/fault_compose.py): overlapping faults of one kind combine, the end of one
+        never cancels another."""
         twin = self.twin
         k, a = spec.kind, spec.arg
+        value = effective(k, self.active, target_of(spec))
         if k in self._can:
-            self._can[k] = a
+            self._can[k] = value
             self._set_can()
-        elif k == "silent":
-            twin.network.silence(node_name(a), True)
-        elif k == "bus-off":
-            self._bus_off(spec)
         elif k == "serial-noise":
-            twin.link.set_noise(a, seed=self.seed * 7919 + 1)
-        elif k == "deadline":
-            end = spec.t1_s * US_PER_S if spec.t1_s is not None else None
-            ticks = 10**9 if end is None else max(1, math.ceil((end - twin.clock.now_us) / PWM_PERIOD_US))
-            twin.slaves[a].inject_deadline_violation(DEADLINE_DELAY_US, ticks)
+            twin.link.set_noise(value, seed=self.seed * 7919 + 1)
         elif k == "force-noise":
-            twin.plant.set_force_noise(a)
-        elif k == "force-stuck":
-            twin.plant.set_force_stuck(a, True)
-        elif k == "servo-stuck":
-            twin.plant.set_servo_stuck(a[0], a[1] - 1, True)
+            twin.plant.set_force_noise(value)
+        elif k in ("silent", "force-stuck", "servo-stuck"):
+            key = (k, target_of(spec))
+            if value == self._on.get(key, False):
+                return                        # already so: a second freeze must not move the jam
+            self._on[key] = value
+            if k == "silent":
+                twin.network.silence(node_name(a), value)
+            elif k == "force-stuck":
+                twin.plant.set_force_stuck(a, value)
+            else:
+                twin.plant.set_servo_stuck(a[0], a[1] - 1, value)
         else:  # push
-            twin.plant.set_trunk_force(a)
-        self._note("start", spec)
+            twin.plant.set_trunk_force(value)
+
+    def _deadline(self, scu: int) -> None:
+        """The Slave ``scu`` late every tick until the last end of its active deadline faults."""
+        twin = self.twin
+        ends = [s.t1_s for s in self.active if s.kind == "deadline" and s.arg == scu]
+        if not ends:
+            return
+        if any(e is None for e in ends):
+            ticks = 10**9
+        else:
+            end = max(e for e in ends if e is not None) * US_PER_S
+            ticks = max(1, math.ceil((end - twin.clock.now_us) / PWM_PERIOD_US))
+        twin.slaves[scu].inject_deadline_violation(DEADLINE_DELAY_US, ticks)
 
     def _bus_off(self, spec: FaultSpec) -> None:
         twin = self.twin
@@ -237,28 +290,6 @@ class FaultInjector:
             nxt = twin.clock.now_us + BUS_OFF_REFORCE_US
             if nxt < spec.t1_s * US_PER_S:
                 twin.clock.schedule(nxt, lambda: self._bus_off(spec))
-
-    def _end(self, spec: FaultSpec) -> None:
-        twin = self.twin
-        k, a = spec.kind, spec.arg
-        if k in self._can:
-            self._can[k] = 0.0
-            self._set_can()
-        elif k == "silent":
-            twin.network.silence(node_name(a), False)
-        elif k == "serial-noise":
-            twin.link.set_noise(0.0, seed=self.seed * 7919 + 1)
-        elif k == "force-noise":
-            twin.plant.set_force_noise(0)
-        elif k == "force-stuck":
-            twin.plant.set_force_stuck(a, False)
-        elif k == "servo-stuck":
-            twin.plant.set_servo_stuck(a[0], a[1] - 1, False)
-        elif k == "push":
-            twin.plant.set_trunk_force(0.0)
-        # bus-off: the re-forcing stops at T1 and the node recovers as its firmware does;
-        # deadline: the injected ticks run out at T1
-        self._note("end", spec)
 
 
 # --- the CLI (``run`` and ``serve``): cli/main.py calls these ------------------------------------

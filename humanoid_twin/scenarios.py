@@ -44,7 +44,7 @@ from humanoid_twin.host.timebase import sleep as host_sleep
 from humanoid_twin.master.supervisor import ESTOP, SAFE, SupervisorConfig
 from humanoid_twin.monitor import Monitor
 from humanoid_twin.protocol.wire import ControlType
-from humanoid_twin.slave.laws import install_laws
+from humanoid_twin.slave.laws import LawError, install_laws
 from humanoid_twin.twin import Twin
 
 CONTROL_CHOICES: dict[str, int] = {t.label: t for t in ControlType}   # run --control
@@ -64,9 +64,19 @@ class ScenarioInputError(ScenarioError):
     """The options ask for something the run cannot do (a ``--duration`` shorter than the boot)."""
 
 
-class _DurationReachedError(Exception):
+class _DurationReachedError(BaseException):
     """Raised by the clock at ``--duration`` when that instant falls inside the motion: the run is
-    cut there and its summary says ``completed: false``."""
+    cut there and its summary says ``completed: false``. A ``BaseException``: a host controller's
+    ``except Exception`` does not swallow it."""
+
+
+class _HostBoundReachedError(BaseException):
+    """Raised by the clock at the run's end while a host controller runs: whatever the
+    controller does (sleeps, loops), the run ends at its duration (issue 24)."""
+
+
+class _WallTimeoutError(BaseException):
+    """SIGALRM at ``wall_timeout`` wall seconds (``run --wall-timeout``)."""
 
 
 class BootError(ScenarioError):
@@ -129,6 +139,9 @@ class RunOptions:
     laws: tuple[tuple[int | str, Any], ...] = ()
     host_controller: Callable[..., Any] | str | None = None
     host_period_ms: float = 20.0
+    # wall seconds the run may take (None: unbounded); beyond it the run ends with ScenarioError,
+    # its files closed (``run --wall-timeout``, sweep's ``--timeout``)
+    wall_timeout: float | None = None
 
 
 _BALANCE_TYPES = (ControlType.REACTION_CONTROL, ControlType.BALANCE_CONTROL)
@@ -296,6 +309,71 @@ def tilt_profile(
     return profile
 
 
+def _arm_wall_timeout(seconds: float | None) -> Callable[[], None]:
+    """SIGALRM after ``seconds`` of wall time raises :class:`_WallTimeoutError` where the run is
+    (also in a host controller's ``time.sleep``); returns the function that disarms it. Main
+    thread only (elsewhere, and with None, nothing is armed)."""
+    import signal
+    import threading
+
+    if seconds is None or threading.current_thread() is not threading.main_thread():
+        return lambda: None
+
+    fired = [0]
+
+    def on_alarm(signum: int, frame: Any) -> None:
+        # raised again every 0.5 s while user code swallows it; after 5 s of that, the process
+        # ends (one line, temporary files removed, exit 1): humanoid_twin/signals.hard_exit
+        fired[0] += 1
+        if fired[0] > 10:
+            from humanoid_twin.signals import hard_exit
+
+            hard_exit(1, f"humanoid-twin: the run took more than {seconds:g} wall seconds (--wall-timeout) "
+                      "and user code swallowed the stop: ended at once")
+        raise _WallTimeoutError
+
+    previous = signal.signal(signal.SIGALRM, on_alarm)
+    signal.setitimer(signal.ITIMER_REAL, seconds, 0.5)
+
+    def disarm() -> None:
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        signal.signal(signal.SIGALRM, previous if previous is not None else signal.SIG_DFL)
+
+    return disarm
+
+
+def _arm_host_bound(twin: Twin, duration: float) -> dict[str, Any]:
+    """From ``duration`` on, every 20 ms of the clock raises :class:`_HostBoundReachedError`
+    while the returned dict's ``armed`` is true: a host controller cannot run the twin past the
+    run's end, even one that swallows the first (``except BaseException``)."""
+    state: dict[str, Any] = {"armed": True}
+
+    def bound() -> None:
+        if state["armed"]:
+            twin.clock.schedule(twin.clock.now_us + 20_000, bound)
+            raise _HostBoundReachedError
+
+    twin.clock.schedule(max(round(duration * US_PER_S), twin.clock.now_us), bound)
+    return state
+
+
+def _after_boot_s(motion_s: float, tilt: float) -> float:
+    """The run after the boot: the motion or the platform's tilt, whichever is longer, then settle."""
+    return max(motion_s, abs(tilt) / TILT_RATE_DEG_S) + SETTLE_S
+
+
+def expected_run_s(scenario: str, duration: float | None = None, T: float | None = None,
+                   motion: float | None = None, perna: int = 1, tilt: float = 0.0) -> float:
+    """How long a run lasts at most, in simulated seconds, known before it starts: ``duration``
+    when given, else the boot's bound (:data:`BOOT_TIMEOUT_S`) + the motion or the tilt + the
+    settling (what the CLI sizes the outputs' disk space by)."""
+    if duration is not None:
+        return duration
+    spec = get_scenario(scenario)
+    motion_s = float(np.sum(spec.plan(T, motion, perna).t)) if spec.moves else 0.0
+    return BOOT_TIMEOUT_S + _after_boot_s(motion_s, tilt)
+
+
 def run(opts: RunOptions, on_progress: Callable[[float, float | None], None] | None = None,
         on_twin: Callable[[Twin], None] | None = None) -> dict[str, Any]:
     """Run one scenario headless and return its summary (docs/scenarios.md).
@@ -311,7 +389,11 @@ def run(opts: RunOptions, on_progress: Callable[[float, float | None], None] | N
     sup = twin.master.supervisor
     injector = FaultInjector(twin, opts.faults, opts.seed)
     if opts.laws:
-        install_laws(twin, opts.laws)
+        try:
+            install_laws(twin, opts.laws)
+        except LawError as exc:       # a law that cannot be made for every board: a bad --law
+            twin.close()
+            raise ScenarioInputError(str(exc)) from None
     host_step = load_host_controller(opts.host_controller) if opts.host_controller is not None else None
     host_error: str | None = None
 
@@ -319,15 +401,16 @@ def run(opts: RunOptions, on_progress: Callable[[float, float | None], None] | N
         return sup.mode in (SAFE, ESTOP)
 
     recorder = canlog = None
+    summary: dict[str, Any] | None = None
     wall0 = time.perf_counter()
+    disarm = _arm_wall_timeout(opts.wall_timeout)
     try:
         the_plan = spec.plan(opts.T, opts.motion, opts.perna)
         if opts.control is not None:
             split = spec.double_support or the_plan.lead is not None
             the_plan = the_plan.with_control(CONTROL_CHOICES[opts.control], split=split)
         motion_s = float(np.sum(the_plan.t)) if spec.moves else 0.0
-        # the run after the boot: the motion or the platform's tilt, whichever is longer, then settle
-        after_boot_s = max(motion_s, abs(opts.tilt) / TILT_RATE_DEG_S) + SETTLE_S
+        after_boot_s = _after_boot_s(motion_s, opts.tilt)
         if opts.out is not None:
             from humanoid_twin.recording import Recorder, compact_for
 
@@ -389,15 +472,20 @@ def run(opts: RunOptions, on_progress: Callable[[float, float | None], None] | N
                     raise ScenarioError(f"{opts.scenario}: {exc}") from exc
                 host_error = f"{opts.scenario}: {exc}"
             if host_step is not None and host_error is None:
+                bound = _arm_host_bound(twin, duration)
                 try:
                     host_calls = run_host_controller(H, host_step, monitor, duration, opts.host_period_ms,
                                                      should_stop=stopped).calls
+                except _HostBoundReachedError as exc:  # the run reached its duration: completed
+                    host_calls = exc.host_context.calls  # type: ignore[attr-defined]
                 except drivers.CommError as exc:
                     if not stopped() and not opts.faults:
                         raise ScenarioError(f"host controller: {exc}") from exc
                     host_error = f"host controller: {exc}"
                 except RuntimeError as exc:
                     raise ScenarioError(str(exc)) from exc
+                finally:
+                    bound["armed"] = False
             rest = duration - twin.now_s
             if rest > 0:
                 host_sleep(H, rest)
@@ -426,8 +514,12 @@ def run(opts: RunOptions, on_progress: Callable[[float, float | None], None] | N
             "seed": opts.seed,
             "mode": sup.mode_name,
             "faults": [f.as_dict() for f in sup.faults],
-            "injected": [s.as_dict() for s in opts.faults],
+            # the faults that started (one whose T0 lies beyond the run's end is listed apart)
+            "injected": [s.as_dict() for s in opts.faults if _started(s, injector)],
         }
+        not_started = [s.as_dict() for s in opts.faults if not _started(s, injector)]
+        if not_started:
+            summary["injected_not_started"] = not_started
         if host_error is not None:
             summary["host_error"] = host_error
         law_faults = [sl.servo.law_fault for sl in twin.slaves.values() if sl.servo.law_fault is not None]
@@ -436,12 +528,35 @@ def run(opts: RunOptions, on_progress: Callable[[float, float | None], None] | N
         if host_calls is not None:
             summary["host_controller_calls"] = host_calls
         return summary
+    except _WallTimeoutError:
+        raise ScenarioError(f"the run took more than {opts.wall_timeout:g} wall seconds (--wall-timeout): "
+                            f"stopped at t={twin.now_s:.3f} s simulated") from None
     finally:
-        if recorder is not None:
-            recorder.close()
-        if canlog is not None:
-            canlog.close()
-        twin.close()
+        disarm()
+        _close_all(recorder, canlog, twin)
+        if summary is not None and recorder is not None and recorder.compaction_error is not None:
+            # the compaction failed (no room for its copy, a signal): the file is kept as recorded
+            summary["recording_compacted"] = False
+            summary["recording_note"] = recorder.compaction_error
+
+
+def _started(spec: FaultSpec, injector: FaultInjector) -> bool:
+    return any(s is spec for s in injector.started)
+
+
+def _close_all(*things: Any) -> None:
+    """Close every output and the twin, each even when an earlier one failed; the first error
+    is raised once all are closed (a recording that failed must not leave the CAN log open)."""
+    first: BaseException | None = None
+    for thing in things:
+        if thing is None:
+            continue
+        try:
+            thing.close()
+        except BaseException as exc:    # noqa: BLE001 - raised again below, after the others
+            first = first or exc
+    if first is not None:
+        raise first
 
 
 # a foot that moved less than this along the platform held its place: a foot rolling onto an edge
@@ -495,7 +610,8 @@ SUMMARY_KEYS: dict[str, str] = {
     "mode": "the Master supervisor's mode at the end (`ready`; `safe` or `estop`: exit code 3; "
             "docs/supervisor.md)",
     "faults": "the faults the supervisor latched: name, node, time, detail each",
-    "injected": "the `--fault` specs injected (docs/supervisor.md)",
+    "injected": "the `--fault` specs injected that started (docs/supervisor.md)",
+    "injected_not_started": "only when some `--fault` starts beyond the run's end: those specs",
     "host_error": "only when a host request failed while the supervisor was stopped or faults were "
                   "injected: that request's error (the run went on)",
     "law_faults": "only when a control law raised or returned a bad value: which law, board, time "
@@ -503,6 +619,9 @@ SUMMARY_KEYS: dict[str, str] = {
     "host_controller_calls": "only with `--host-controller`: how many times its `step` was called",
     "recording": "the `.rrd` written (the CLI)",
     "can_log": "the CAN log written (the CLI)",
+    "recording_compacted": "only when the compaction of a long recording failed: `false`, the file "
+                           "kept as recorded (docs/recording.md)",
+    "recording_note": "only with `recording_compacted`: why the compaction failed",
 }
 
 
@@ -558,4 +677,4 @@ def _finite(x: float) -> float | None:
 __all__ = ["RunOptions", "outcome", "SLIP_HELD_MM", "SUMMARY_KEYS", "summary_keys_markdown",
            "Monitor", "Plan", "Scenario", "REGISTRY", "scenario", "get_scenario", "boot",
            "hold", "BootError", "ScenarioError", "ScenarioInputError", "SCENARIOS", "CONTROL_CHOICES", "plan",
-           "run", "tilt_profile"]
+           "run", "tilt_profile", "expected_run_s"]

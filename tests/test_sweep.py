@@ -79,15 +79,19 @@ def test_one_job_gives_the_same_rows_as_two(two_jobs, tmp_path, capsys):
     assert list(_rows(out)[0]) == list(_rows(two_jobs)[0])          # same columns, same order
 
 
-def test_a_failing_point_is_a_row_with_its_error(tmp_path, capsys):
+def test_a_failing_point_is_a_row_with_its_error(tmp_path, capsys, monkeypatch):
     out = tmp_path / "fail.csv"
-    # no such SocketCAN interface here (or no SocketCAN at all): that run fails, the other works
-    rc, stdout, _ = _sweep(["--param", "can-interface=virtual,socketcan", "--can-channel", "nosuch0",
+    # both points pass run's checks (checked before any run: docs/sweeps.md); one fails while it
+    # runs (its host controller raises): that run is a row with its error, the other works
+    (tmp_path / "ctlmod.py").write_text("def ok(ctx):\n    pass\n\ndef boom(ctx):\n    1 / 0\n")
+    monkeypatch.chdir(tmp_path)
+    rc, stdout, _ = _sweep(["--param", "host-controller=ctlmod:ok,ctlmod:boom",
                             "--duration", "3", "--out", str(out)], capsys)
     assert rc == 101 and "2 runs, 1 failed" in stdout     # 100 + the number of failed runs
     ok, bad = _rows(out)
-    assert ok["can-interface"] == "virtual" and ok["error"] == "" and ok["fell"] == "False"
-    assert bad["can-interface"] == "socketcan" and bad["error"].startswith("RuntimeError: exit 2")
+    assert ok["host-controller"] == "ctlmod:ok" and ok["error"] == "" and ok["fell"] == "False"
+    assert bad["host-controller"] == "ctlmod:boom" and bad["error"].startswith("RuntimeError: exit 1")
+    assert "ZeroDivisionError" in bad["error"]
     assert bad["fell"] == ""
 
 
@@ -198,7 +202,7 @@ def test_sigterm_keeps_the_finished_runs_and_a_rerun_resumes(tmp_path):
         if proc.poll() is None:
             proc.kill()
             proc.wait()
-    assert proc.returncode == 130 and "interrupted" in err
+    assert proc.returncode == 143 and "terminated" in err
     done = _rows(out)
     assert 1 <= len(done) < 3 and all(r["error"] == "" for r in done)
     assert [p.name for p in tmp_path.iterdir()] == ["t.csv"]    # no temporary file left behind

@@ -36,6 +36,9 @@ non_negative_seconds = checked(float, "a number of seconds", lambda v: v >= 0,
                                "must be a number of seconds >= 0")
 degrees_90 = checked(float, "a number of degrees", lambda v: abs(v) <= 90,
                      "must be within -90..90 degrees")
+# a wall-clock limit: positive and finite, at most 10**7 s (~116 days; the interval timer's range)
+wall_seconds = checked(float, "a number of seconds", lambda v: 0 < v <= 1e7,
+                       "must be a number of seconds, 0 < S <= 10000000")
 tcp_port = checked(int, "a port number", lambda v: 0 <= v <= 65535, "a TCP port is 0..65535")
 count = checked(int, "a whole number", lambda v: v >= 1, "must be at least 1")
 speed_factor = checked(float, "a speed factor", lambda v: 0.01 <= v <= 100,

@@ -28,6 +28,7 @@ from humanoid_twin.cli.argtypes import (
     positive_seconds,
     speed_factor,
     tcp_port,
+    wall_seconds,
 )
 
 EXIT_USAGE = 2
@@ -150,6 +151,9 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--json", action="store_true", help="print the summary as one JSON object, alone "
                      "on stdout (instead of the table)")
     run.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
+    run.add_argument("--wall-timeout", type=wall_seconds, metavar="S",
+                     help="end the run after S seconds of wall time (one line, exit 1, files closed, "
+                     "nothing replaced); default: no limit")
     run.add_argument("--viewer", action="store_true", help="watch the run live in MuJoCo's own viewer, "
                      "paced to real time (needs a display)")
     _add_can_options(run)
@@ -169,6 +173,9 @@ def build_parser() -> argparse.ArgumentParser:
     where.add_argument("--tcp", type=tcp_port, metavar="PORT", help="serve on TCP PORT (0: any free port)")
     serve.add_argument("--host", default="127.0.0.1", help="address to bind with --tcp (default 127.0.0.1; "
                        "::1 for IPv6 loopback)")
+    serve.add_argument("--allow-remote", action="store_true",
+                       help="allow a --host that is not loopback (the protocol has no authentication: "
+                       "anyone on the network could drive the robot)")
     serve.add_argument("--idle-timeout", type=non_negative_seconds, default=600.0, metavar="S",
                        help="disconnect a TCP client that sent nothing for S wall seconds, so that a "
                        "silent client cannot hold the port (default 600; 0: never)")
@@ -193,14 +200,21 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 MAX_DURATION_S = 86_400.0   # one simulated day: --duration beyond this is refused
-MIN_FREE_BYTES = 8 * 2**20  # a run's outputs need at least this much free disk (a full disk: exit 2)
+MIN_FREE_BYTES = 8 * 2**20  # a run's outputs need at least this much free disk besides their own size
 SEED_MAX = 2**32 - 1        # seeds are 0..2**32-1 (numpy's range)
 EXIT_INTERRUPTED = 130      # SIGINT (Ctrl-C)
 EXIT_TERMINATED = 143       # SIGTERM (timeout, CI runners, docker stop)
+NAME_MAX = 255              # bytes in a file name (Linux, macOS)
 
-
-class _Terminated(KeyboardInterrupt):
-    """SIGTERM, raised where the run is, so that it closes its files as Ctrl-C does."""
+# What a run writes, per simulated second, measured on stand and flexao (docs/scenarios.md,
+# "Disk space"): the recording streams 186-215 kB/s (220 000 bound); the CAN wire carries 3 800
+# frames/s (4 000 bound) and each python-can format costs (bytes per frame, measured x 1.25):
+RRD_BYTES_PER_S = 220_000
+CAN_FRAMES_PER_S = 4_000
+CAN_LOG_BYTES_PER_FRAME = {".asc": 78, ".blf": 7, ".csv": 44, ".log": 52, ".trc": 92, ".txt": 150,
+                           ".db": 41}
+CAN_LOG_BYTES_PER_FRAME_OTHER = 150     # a format not measured (.mf4 ...): the largest
+CAN_LOG_BYTES_PER_FRAME_GZ = 8          # any format + .gz (measured .asc.gz: 3.2)
 
 
 def _check_writable(path: Path, what: str) -> None:
@@ -211,50 +225,119 @@ def _check_writable(path: Path, what: str) -> None:
         raise _usage_error(f"{what} {path}: directory {parent} does not exist")
     if not os.access(parent, os.W_OK) or (path.exists() and not os.access(path, os.W_OK)):
         raise _usage_error(f"{what} {path} is not writable")
+    if len(os.fsencode(path.name)) > NAME_MAX:
+        raise _usage_error(f"{what}: the file name is longer than {NAME_MAX} bytes")
+
+
+def temp_name(path: Path) -> Path:
+    """The temporary name a run writes ``path`` under (beside it, renamed at the end): the
+    suffixes kept at the end (the format follows them), and never longer than a file name may be
+    (a valid 252-character name still gets a valid temporary one)."""
+    name = f".partial-{os.getpid()}-{path.name}"
+    if len(os.fsencode(name)) <= NAME_MAX:
+        return path.with_name(name)
+    import hashlib
+
+    suffixes = path.suffixes[-2:] if path.suffix.lower() == ".gz" else path.suffixes[-1:]
+    keep = "".join(suffixes)[-40:]
+    digest = hashlib.sha256(os.fsencode(path.name)).hexdigest()[:16]
+    return path.with_name(f".partial-{os.getpid()}-{digest}{keep}")
+
+
+def output_bytes(kind: str, path: Path, expected_s: float) -> int:
+    """What a run of ``expected_s`` simulated seconds writes to ``path`` at most (bytes): a
+    recording (``kind`` "out"), twice over when it is compacted at the end (the compaction writes
+    a copy before it replaces the file), or a CAN log in its format."""
+    if kind == "out":
+        from humanoid_twin.recording import compact_for
+
+        return round(expected_s * RRD_BYTES_PER_S * (2 if compact_for(expected_s) else 1))
+    suffix = path.suffix.lower()
+    if suffix == ".gz":
+        per_frame = CAN_LOG_BYTES_PER_FRAME_GZ
+    else:
+        per_frame = CAN_LOG_BYTES_PER_FRAME.get(suffix, CAN_LOG_BYTES_PER_FRAME_OTHER)
+    return round(expected_s * CAN_FRAMES_PER_S * per_frame)
 
 
 class _Outputs:
     """The run's files are written under temporary names next to their final ones and renamed at
     the end: a failed run never replaces an existing file. Each temporary file is created up
-    front (an unwritable place is found before the run: exit 2)."""
+    front (an unwritable place is found before the run: exit 2), once the free space of every
+    disk has been checked against what the run will write there (:func:`output_bytes`)."""
 
     def __init__(self) -> None:
         self.final: dict[str, Path] = {}
         self.temp: dict[str, Path] = {}
 
+    def check_space(self, wanted: dict[str, tuple[Path, str]], expected_s: float) -> None:
+        """Every disk has room for what the run writes on it, plus :data:`MIN_FREE_BYTES`."""
+        need: dict[int, list] = {}
+        for key, (path, what) in wanted.items():
+            _check_writable(path, what)
+            parent = path.expanduser().resolve().parent
+            dev = os.stat(parent).st_dev
+            entry = need.setdefault(dev, [parent, 0, []])
+            entry[1] += output_bytes(key, path, expected_s)
+            entry[2].append(f"{what} {path}")
+        for parent, total, whats in need.values():
+            free = shutil.disk_usage(parent).free
+            if free < total + MIN_FREE_BYTES:
+                raise _usage_error(
+                    f"{' and '.join(whats)}: a {expected_s:g} s run writes about "
+                    f"{(total + MIN_FREE_BYTES) / 2**20:.0f} MB there, only {free / 2**20:.0f} MB free "
+                    "(docs/scenarios.md, \"Disk space\")")
+
     def add(self, key: str, path: Path, what: str) -> Path:
-        _check_writable(path, what)
         path = path.expanduser()
-        # the format follows the suffixes, kept at the end of the temporary name
-        free = shutil.disk_usage(path.resolve().parent).free
-        if free < MIN_FREE_BYTES:
-            raise _usage_error(f"{what} {path}: only {free // 1024} kB free on that disk "
-                               f"(a run needs at least {MIN_FREE_BYTES // 2**20} MB)")
-        tmp = path.with_name(f".partial-{os.getpid()}-{path.name}")
-        try:
-            os.close(os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o644))
-        except OSError as exc:
-            self.discard()
-            raise _usage_error(f"{what} {path}: cannot write there: {exc.strerror or exc}") from None
-        self.final[key], self.temp[key] = path, tmp
+        tmp = temp_name(path)
+        from humanoid_twin import signals
+
+        with signals.deferred():     # created and registered together: no stray file after a signal
+            try:
+                os.close(os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o644))
+            except OSError as exc:
+                self.discard()
+                raise _usage_error(f"{what} {path}: cannot write there: {exc.strerror or exc}") from None
+            self.final[key], self.temp[key] = path, tmp
         return tmp
 
     def commit(self) -> None:
-        for key, tmp in self.temp.items():
-            if tmp.exists():
-                os.replace(tmp, self.final[key])
-        self.temp.clear()
+        from humanoid_twin import signals
+
+        with signals.deferred():     # every rename done before a signal is delivered
+            for key, tmp in list(self.temp.items()):
+                if tmp.exists():
+                    os.replace(tmp, self.final[key])
+                del self.temp[key]
 
     def discard(self) -> None:
-        for tmp in self.temp.values():
-            with contextlib.suppress(OSError):
-                tmp.unlink()
-        self.temp.clear()
+        from humanoid_twin import signals
+
+        with signals.deferred():
+            for tmp in self.temp.values():
+                with contextlib.suppress(OSError):
+                    tmp.unlink()
+            self.temp.clear()
+
+    def final_names(self, text: str) -> str:
+        """``text`` with each temporary name replaced by its final one (error messages)."""
+        for key, tmp in self.temp.items():
+            text = text.replace(str(tmp), str(self.final[key]))
+        return text
 
 
 def _check_seed_and_tilt(args: argparse.Namespace) -> None:
-    """``--seed`` and ``--tilt``, the options ``run`` and ``serve`` share (one line, exit 2)."""
+    """``--seed``, ``--tilt`` and how the ``--fault`` s compose, the options ``run`` and ``serve``
+    share (one line, exit 2)."""
+    from humanoid_twin.fault_compose import check_composition
+    from humanoid_twin.faults import FaultSpecError
     from humanoid_twin.plant.plant import TILT_MAX_DEG
+
+    try:
+        check_composition(getattr(args, "fault", None) or ())
+    except FaultSpecError as exc:
+        raise _usage_error(str(exc)) from None
 
     if not 0 <= args.seed <= SEED_MAX:
         raise _usage_error(f"--seed {args.seed}: must be 0..{SEED_MAX}")
@@ -322,25 +405,37 @@ def cmd_run(args: argparse.Namespace) -> int:
             raise _usage_error(f"--can-log: {exc}") from None
         except OSError:
             pass                          # the writability check below says it in one line
-    outputs = _Outputs()
-    try:
-        out_tmp = outputs.add("out", out, "--out") if out is not None else None
-        can_tmp = outputs.add("can_log", args.can_log, "--can-log") if args.can_log is not None else None
-        return _run(args, outputs, out_tmp, can_tmp)
-    finally:
-        outputs.discard()       # whatever was not committed
-
-
-def _run(args: argparse.Namespace, outputs: _Outputs, out_tmp: Path | None, can_tmp: Path | None) -> int:
+    # a --law / --host-controller is imported and checked before any file is created
     from humanoid_twin.controllers import ControllerError, controller_run_options
-    from humanoid_twin.faults import supervisor_config
-    from humanoid_twin.recording.readback import RrdReadError
-    from humanoid_twin.scenarios import RunOptions, ScenarioError, ScenarioInputError, run
+    from humanoid_twin.scenarios import expected_run_s
 
     try:
         controllers = controller_run_options(args)
     except ControllerError as exc:
         raise _usage_error(str(exc)) from None
+    wanted = {k: (p, w) for k, p, w in (("out", out, "--out"), ("can_log", args.can_log, "--can-log"))
+              if p is not None}
+    outputs = _Outputs()
+    from humanoid_twin import signals
+
+    signals.on_hard_exit(outputs.discard)     # --wall-timeout against code that swallows the stop
+    outputs.check_space(wanted, expected_run_s(args.scenario, args.duration, args.T, args.motion,
+                                               args.perna, args.tilt))
+    try:
+        out_tmp = outputs.add("out", out, "--out") if out is not None else None
+        can_tmp = outputs.add("can_log", args.can_log, "--can-log") if args.can_log is not None else None
+        return _run(args, controllers, outputs, out_tmp, can_tmp)
+    finally:
+        outputs.discard()       # whatever was not committed
+
+
+def _run(args: argparse.Namespace, controllers: dict, outputs: _Outputs, out_tmp: Path | None,
+         can_tmp: Path | None) -> int:
+    from humanoid_twin import signals
+    from humanoid_twin.faults import supervisor_config
+    from humanoid_twin.recording.readback import RrdReadError
+    from humanoid_twin.scenarios import RunOptions, ScenarioError, ScenarioInputError, run
+
     opts = RunOptions(
         **controllers,
         scenario=args.scenario, duration=args.duration, T=args.T, motion=args.motion, perna=args.perna,
@@ -348,6 +443,7 @@ def _run(args: argparse.Namespace, outputs: _Outputs, out_tmp: Path | None, can_
         control=args.control, tilt=args.tilt, seed=args.seed,
         progress=not args.no_progress, can_interface=args.can_interface, can_channel=args.can_channel,
         faults=tuple(args.fault), supervisor=supervisor_config(args),
+        wall_timeout=getattr(args, "wall_timeout", None),
     )
     bar = None
     if opts.progress:
@@ -360,35 +456,31 @@ def _run(args: argparse.Namespace, outputs: _Outputs, out_tmp: Path | None, can_
         from humanoid_twin.cli.live_viewer import LiveViewer, LiveViewerError
 
         live, viewer_errors = LiveViewer(), (LiveViewerError,)
-    previous_term = signal.getsignal(signal.SIGTERM)
-
-    def _on_term(signum: int, frame: object) -> None:
-        raise _Terminated()
-
-    signal.signal(signal.SIGTERM, _on_term)
     try:
         summary = run(opts, on_progress=None if bar is None else bar.update,
                       on_twin=None if live is None else live.attach)
     except ScenarioInputError as exc:
         raise _usage_error(str(exc)) from None
     except ScenarioError as exc:
-        sys.stderr.write(f"humanoid-twin: {exc}\n")
+        sys.stderr.write(f"humanoid-twin: {_one_line(outputs.final_names(str(exc)))}\n")
         return 1
     except viewer_errors as exc:        # the window could not open (nothing written yet)
         raise _usage_error(str(exc)) from None
     except KeyboardInterrupt as exc:
-        # the run closed its files on the way out: what was recorded is kept (valid files)
+        # SIGINT / SIGTERM (humanoid_twin/signals.py, installed by main): the run closed its files
+        # on the way out, each complete before the signal was let through: what was recorded is
+        # kept (valid files)
         outputs.commit()
         kept = " ".join(str(p) for p in outputs.final.values())
-        why = "terminated (SIGTERM)" if isinstance(exc, _Terminated) else "interrupted"
+        why = "terminated (SIGTERM)" if isinstance(exc, signals.Terminated) else "interrupted"
         sys.stderr.write(f"humanoid-twin: {why}" + (f"; recorded so far: {kept}" if kept else "") + "\n")
-        return EXIT_TERMINATED if isinstance(exc, _Terminated) else EXIT_INTERRUPTED
+        return signals.exit_code(exc)
     except (OSError, RrdReadError) as exc:
         # a full disk (or a file-size limit) while writing: one line, nothing replaced
-        sys.stderr.write(f"humanoid-twin: error: cannot write the outputs: {exc}; no file replaced\n")
+        sys.stderr.write(f"humanoid-twin: error: cannot write the outputs: "
+                         f"{_one_line(outputs.final_names(str(exc)))}; no file replaced\n")
         return 1
     finally:
-        signal.signal(signal.SIGTERM, previous_term)
         if bar is not None:
             bar.close()
         if live is not None:
@@ -402,6 +494,9 @@ def _run(args: argparse.Namespace, outputs: _Outputs, out_tmp: Path | None, can_
                              + (" (replacing the earlier one; --out FILE.rrd picks another)"
                                 if replaced else "")
                              + "\n")
+        if summary.get("recording_compacted") is False:
+            sys.stderr.write(f"humanoid-twin: warning: {outputs.final['out']} kept as recorded, not "
+                             f"compacted: {outputs.final_names(summary.get('recording_note', ''))}\n")
     if "can_log" in outputs.final:
         summary["can_log"] = str(outputs.final["can_log"])
     for fault in summary.get("law_faults", ()):
@@ -409,6 +504,12 @@ def _run(args: argparse.Namespace, outputs: _Outputs, out_tmp: Path | None, can_
                          f"t={fault['t_s']} s: {fault['reason']}\n")
     _print_summary(summary, args.json)
     return EXIT_SUPERVISOR if summary.get("mode") in ("safe", "estop") else 0
+
+
+def _one_line(text: str, limit: int = 500) -> str:
+    """``text`` on one line, at most ``limit`` characters (an error message from anywhere)."""
+    text = " ".join(text.split())
+    return text if len(text) <= limit else text[: limit - 3] + "..."
 
 
 def _plain(value: object) -> str:
@@ -448,23 +549,48 @@ def cmd_serve(args: argparse.Namespace) -> int:
     _check_can_interface(args)
     if args.tcp is not None:
         _check_bind(args.host, args.tcp)
-    stop = {"flag": False}
+        _check_remote(args.host, args.allow_remote)
+    stop: dict[str, int | None] = {"signal": None}
 
     def _stop(signum: int, frame: object) -> None:
-        stop["flag"] = True
+        stop["signal"] = stop["signal"] or signum
 
     signal.signal(signal.SIGTERM, _stop)
     signal.signal(signal.SIGINT, _stop)
     from humanoid_twin.faults import supervisor_config
 
     try:
-        return serve(tcp_port=args.tcp, host=args.host, seed=args.seed, tilt=args.tilt,
+        code = serve(tcp_port=args.tcp, host=args.host, seed=args.seed, tilt=args.tilt,
                      can_interface=args.can_interface, can_channel=args.can_channel,
                      faults=tuple(args.fault), supervisor=supervisor_config(args),
-                     should_stop=lambda: stop["flag"], idle_timeout_s=args.idle_timeout or None,
-                     speed=args.speed)
+                     should_stop=lambda: stop["signal"] is not None,
+                     idle_timeout_s=args.idle_timeout or None, speed=args.speed)
     except ServeError as exc:
         raise _usage_error(str(exc)) from None
+    # ended by a signal: 130 (SIGINT) or 143 (SIGTERM), as run (issue 24; it was 0)
+    return 128 + stop["signal"] if stop["signal"] is not None else code
+
+
+def _check_remote(host: str, allow: bool) -> None:
+    """``--host`` is a loopback address unless ``--allow-remote`` (the protocol has no
+    authentication: anyone who reaches the port can drive, e-stop or reset the robot)."""
+    import ipaddress
+    import socket
+
+    try:
+        infos = socket.getaddrinfo(host, None, 0, socket.SOCK_STREAM, 0, socket.AI_PASSIVE)
+        addrs = {info[4][0] for info in infos}
+    except (socket.gaierror, UnicodeError) as exc:
+        raise _usage_error(f"--host {host}: not an address or a known host name ({exc})") from None
+    remote = [a for a in addrs if not ipaddress.ip_address(a.split("%")[0]).is_loopback]
+    if not remote:
+        return
+    if not allow:
+        raise _usage_error(f"--host {host} is reachable from other machines and the robot's protocol has "
+                           "no authentication: add --allow-remote if that is what you want (docs/serve.md)")
+    sys.stderr.write(f"humanoid-twin serve: warning: listening on {host}, reachable from the network; the "
+                     "protocol has no authentication: anyone who reaches this port can drive, e-stop or "
+                     "reset the robot\n")
 
 
 def _check_bind(host: str, port: int) -> None:
@@ -518,19 +644,42 @@ def _warn_stale_core() -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Entry point of the ``humanoid-twin`` console script."""
-    parser = build_parser()
-    args, extra = parser.parse_known_args(argv)
-    if extra and args.command != "sweep":     # sweep gives run's options it does not know to every run
-        parser.error(f"unrecognized arguments: {' '.join(extra)}")
-    args.run_args = extra
-    _warn_stale_core()
-    handler = {"run": cmd_run, "serve": cmd_serve, "view": cmd_view, "sweep": cmd_sweep}[args.command]
+    """Entry point of the ``humanoid-twin`` console script.
+
+    Its first instruction installs the signal handlers (humanoid_twin/signals.py): from there to
+    the last rename, SIGINT exits 130 and SIGTERM 143 with one line, never a traceback."""
+    from humanoid_twin import signals
+
+    signals.install()
     try:
+        parser = build_parser()
+        args, extra = parser.parse_known_args(argv)
+        if extra and args.command != "sweep":     # sweep gives run's options it does not know to every run
+            parser.error(f"unrecognized arguments: {' '.join(extra)}")
+        args.run_args = extra
+        _warn_stale_core()
+        handler = {"run": cmd_run, "serve": cmd_serve, "view": cmd_view, "sweep": cmd_sweep}[args.command]
         return handler(args)
-    except KeyboardInterrupt:
-        sys.stderr.write("humanoid-twin: interrupted\n")
-        return 130
+    except Exception as exc:
+        # a signal that landed in an extension module's import comes out wrapped (ImportError)
+        cause = signals.signal_cause(exc)
+        if cause is None:
+            raise
+        return _signalled(cause)
+    except KeyboardInterrupt as exc:
+        return _signalled(exc)
+    finally:
+        signals.restore()
+
+
+def _signalled(exc: BaseException) -> int:
+    """One line for SIGINT / SIGTERM, and the exit code (130 / 143)."""
+    from humanoid_twin import signals
+
+    why = "terminated (SIGTERM)" if isinstance(exc, signals.Terminated) else "interrupted"
+    with contextlib.suppress(OSError):
+        sys.stderr.write(f"humanoid-twin: {why}\n")
+    return signals.exit_code(exc)
 
 
 if __name__ == "__main__":

@@ -648,14 +648,19 @@ def raise_for_error(result: tuple[Any, ...], what: str = "request", H: Any = Non
         return
     code = ErrorCode(err)
     rx = result.rx  # type: ignore[attr-defined]
-    is_apply = len(rx) == 6 and parse_opcode(rx[1])[0] <= Op.APPLY_CONTROL
-    if H is not None and code == ErrorCode.INVALID_REQUEST and is_apply:
+    opcode = parse_opcode(rx[1]) if len(rx) == 6 else (-1, -1, -1)
+    is_apply = 0 <= opcode[0] <= Op.APPLY_CONTROL
+    # a reset the supervisor refused (a board not answering: the latch holds, docs/supervisor.md)
+    is_reset = opcode[0] == Op.MASTER and opcode[2] == PARAM_SUPERVISOR and rx[2] == SUPERVISOR_RESET
+    if H is not None and code == ErrorCode.INVALID_REQUEST and (is_apply or is_reset):
         sup = readsupervisor(H)
         if sup.error == ErrorCode.OK and sup.mode_name in ("safe", "estop"):
             fault = f", latched fault {sup.fault_name} on node {sup.node}" if sup.fault else ""
+            hint = ("a board does not answer: the latch holds until every board answers"
+                    if is_reset else "readsupervisor; reset to recover")
             raise SupervisorRefused(
                 f"{what}: refused by the Master's supervisor: mode {sup.mode_name}{fault} "
-                f"(readsupervisor; reset to recover)", code, rx, result.tries,  # type: ignore[attr-defined]
+                f"({hint})", code, rx, result.tries,  # type: ignore[attr-defined]
                 sup.mode, sup.fault or 0, sup.node or 0)
     raise _EXC[code](f"{what}: {result.errorstr}", code, result.rx, result.tries)  # type: ignore[attr-defined]
 

@@ -27,6 +27,11 @@ cdef class Supervisor:
     cdef public long long _master_sent
     cdef public list _deadline_since
     cdef public object _balance_since
+    # issue 24: why the last reset was refused; the leg boards' loads before calibration and the
+    # margin they gave (falls during the boot); the methods using them stay Python-level
+    cdef public object reset_refused
+    cdef public dict _raw_load
+    cdef public object _raw_margin
 
     cpdef tuple read(self)
     cpdef bint apply_allowed(self)

@@ -81,6 +81,20 @@ SENSOR_X_MIN, SENSOR_X_MAX = min(_XS), max(_XS)
 SENSOR_Y_MIN, SENSOR_Y_MAX = min(_YS), max(_YS)
 
 
+def _support_margin(cops: list[tuple[int, int]]) -> float:
+    """How far the CoPs of the loaded feet (one or two, mm, foot frames) are inside the edge the
+    robot can tip over (:meth:`Supervisor.balance_margin_mm`); -1 with no foot loaded."""
+    if not cops:
+        return -1.0
+    if len(cops) == 1:
+        x, y = cops[0]
+        return min(x - SENSOR_X_MIN, SENSOR_X_MAX - x, y - SENSOR_Y_MIN, SENSOR_Y_MAX - y)
+    ys = [y for _, y in cops]
+    front = max([SENSOR_Y_MAX - y for y in ys])
+    back = max([y - SENSOR_Y_MIN for y in ys])
+    return min(front, back)
+
+
 class Fault(NamedTuple):
     """One detected fault: virtual time, wire code, node (0 Master, 1-8 Slaves)."""
 
@@ -150,6 +164,10 @@ class Supervisor:
         self._master_sent = 0
         self._deadline_since: list[int | None] = [None] * len(NODES)
         self._balance_since: int | None = None
+        self.reset_refused: str | None = None  # why the last reset was refused (None: it was not)
+        # the leg boards' loads before calibration (counts) and the margin they gave (boot falls)
+        self._raw_load: dict[int, int] = {k: 0 for k in FOOT_OF_SCU}
+        self._raw_margin: float | None = None
 
     # -- what the host sees -----------------------------------------------------------------------
     @property
@@ -174,6 +192,12 @@ class Supervisor:
         mode, code, node, _ = self.read()
         fault = f", fault {FAULT_NAMES[code]} node {node}" if code else ""
         return f"supervisor in {MODE_NAMES[mode]}{fault}: APPLY refused"
+
+    def reset_refusal(self) -> str:
+        """Why the last reset was refused (for the Master's ``last_invalid``)."""
+        mode, code, node, _ = self.read()
+        fault = f", fault {FAULT_NAMES[code]} node {node}" if code else ""
+        return f"supervisor in {MODE_NAMES[mode]}{fault}: reset refused: {self.reset_refused}"
 
     # -- requests from the host (usartProcessMsg) ------------------------------------------------
     def host_frame(self) -> None:
@@ -200,14 +224,40 @@ class Supervisor:
                 a.invalidate()
         self._set_mode(ESTOP)
 
-    def reset(self) -> None:
-        """Reset: forget the latched faults and run a new self-check (from any mode)."""
+    def reset(self) -> bool:
+        """Reset: forget the latched faults and run a new self-check (from any mode). From safe
+        or estop only a healthy robot is reset (:meth:`reset_blocker`): otherwise nothing changes,
+        the latch holds, and False is returned (the request is answered FC)."""
+        why = self.reset_blocker()
+        if why is not None:
+            self.reset_refused = why
+            return False
+        self.reset_refused = None
         self.latched.clear()
         self._seen.clear()
-        self._quiet_rounds[:] = [0] * len(NODES)
+        # the silence counters run on through a reset: a board already quiet is not given
+        # a fresh 3-round grace (docs/supervisor.md, "Reset")
         self._deadline_since[:] = [None] * len(NODES)
         self._balance_since = None
         self._set_mode(SELF_CHECK)
+        return True
+
+    def reset_blocker(self) -> str | None:
+        """Why a reset may not open the latch now (None: it may). In safe and estop every board
+        must have answered within the last 2 CAN rounds and the Master's own controller must be
+        on the bus (not bus-off; the Slaves answer only the Master's packets, so their answers
+        say its own frames reach the wire): a reset never re-opens motion on a robot with a dead
+        board, however often it is asked (docs/supervisor.md, "Reset")."""
+        if self.mode != SAFE and self.mode != ESTOP:
+            return None
+        now = self.clock.now_us
+        if self.can.drivers.controller.state == _BUS_OFF:
+            return "the Master's CAN controller is bus-off (read the CAN status first)"
+        quiet = [k for k, s in self.db.sensors.items()
+                 if s.last_rx_us < 0 or now - s.last_rx_us > 2 * ROUND_US]
+        if quiet:
+            return f"SCU {', '.join(map(str, quiet))} not answering"
+        return None
 
     # -- detection (timer interrupt, end of each CAN round) ------------------------------------
     def on_round(self) -> None:
@@ -268,8 +318,10 @@ class Supervisor:
             self._check_balance(now)
             if cfg.host_link_ms is not None and now - self.last_host_us > cfg.host_link_ms * 1000:
                 self._fault(HOST_LINK, 0, now)
-        if self.mode == SELF_CHECK and self._all_ready(now):
-            self._set_mode(READY)
+        elif self.mode == SELF_CHECK or (self.mode == STANDBY and self.last_host_us > 0):
+            self._check_fall(now)             # a fall during the boot, once the host has started it
+        if self.mode == SELF_CHECK and self._all_ready(now) and self._balance_since is None:
+            self._set_mode(READY)             # (not while a fall is being confirmed, issue 24)
 
     def _all_ready(self, now: int) -> bool:
         want = STATUS_PWM | STATUS_CALIB
@@ -311,6 +363,58 @@ class Supervisor:
         front = max([SENSOR_Y_MAX - y for y in ys])
         back = max([y - SENSOR_Y_MIN for y in ys])
         return min(front, back)
+
+    def boot_balance_margin_mm(self) -> float | None:
+        """:meth:`balance_margin_mm` for standby and self_check, where a fall must be seen too
+        (issue 24; docs/supervisor.md, "Falls during the boot"). Before a leg board has
+        calibrated its force sensors their offsets are 0, so its readings are the loads
+        themselves (7-bit counts): the CoP is ``calcCoP`` of the readings, whatever the PWM. Once
+        both are calibrated the readings are taken as in ready (``reading - 128 + calib_load``,
+        PWM on), but a calibration is only trusted if it was taken standing: if the last loads
+        seen before it put the CoP at the edge (the robot was going down while it calibrated),
+        that margin stands; if the feet carried less than half a standing robot's weight (the
+        robot was already down), no foot counts as loaded (-1). None while a leg board has not
+        been heard."""
+        sensors = self.db.sensors
+        cfg = self.config
+        cops = []
+        raw = False
+        for k in FOOT_OF_SCU:
+            s = sensors[k]
+            if s.last_rx_us < 0:
+                return None
+            if s.status & STATUS_CALIB:
+                if not s.status & STATUS_PWM:
+                    return None
+                c = self.foot_cop_mm(k)
+            else:
+                raw = True
+                self._raw_load[k] = sum(s.special)
+                x, y, loaded = calcCoP([int(v) for v in s.special])
+                c = (x, y) if loaded else None
+            if c is not None:
+                cops.append(c)
+        margin = _support_margin(cops)
+        if raw:
+            self._raw_margin = margin
+            return margin
+        standing = cfg.balance_calib_load * len(FORCE_SENSOR_XY_MM) * len(FOOT_OF_SCU)
+        if 2 * sum(self._raw_load.values()) < standing:
+            return -1.0
+        if self._raw_margin is not None and self._raw_margin <= cfg.balance_margin_mm:
+            return min(margin, self._raw_margin)
+        return margin
+
+    def _check_fall(self, now: int) -> None:
+        """The balance rule of ready (:meth:`_check_balance`) on :meth:`boot_balance_margin_mm`."""
+        m = self.boot_balance_margin_mm()
+        if m is None or m > self.config.balance_margin_mm:
+            self._balance_since = None
+            return
+        if self._balance_since is None:
+            self._balance_since = now
+        elif now - self._balance_since >= self.config.balance_hold_ms * 1000:
+            self._fault(BALANCE, 0, now)
 
     def _check_balance(self, now: int) -> None:
         m = self.balance_margin_mm()

@@ -292,6 +292,8 @@ class Usart:
             return
         if d1 == SUPERVISOR_ESTOP:
             sup.estop()
-        else:
-            sup.reset()
+        elif not sup.reset():               # only a healthy robot is reset (docs/supervisor.md)
+            self.last_invalid = sup.reset_refusal()
+            self.usartSendStatus(MESSAGE_INVREQ)
+            return
         self.usartSendStatus(MESSAGE_SUCCESS)

@@ -19,12 +19,14 @@ the twin's virtual times as they are.
 from __future__ import annotations
 
 import pathlib
+import threading
 import time
 from collections.abc import Iterator
 from typing import TYPE_CHECKING, Any, NamedTuple
 
 import can
 
+from humanoid_twin import signals
 from humanoid_twin.protocol import canframes
 
 if TYPE_CHECKING:
@@ -158,10 +160,30 @@ class CanLog:
             # the final one, when ``path`` is a temporary file renamed at the end)
             writer.filepath = pathlib.PurePath(name or self.path.name).name
         self._writer = writer
+        self._thread_error: BaseException | None = None
+        self._hook: Any = None
+        if isinstance(writer, can.SqliteWriter):
+            self._watch_writer_thread(writer)
         self._tap = _Tap(writer)
         self._closed = False
         self.network = network
         network.add_listener(self._tap)
+
+    def _watch_writer_thread(self, writer: can.SqliteWriter) -> None:
+        """python-can's SQLite writer writes in a thread of its own, where a failure (a full
+        disk, a file-size limit) would only print that thread's traceback: it is caught here and
+        :meth:`close` raises it as the ``OSError`` every other format raises (issue 24)."""
+        previous = threading.excepthook
+        thread = writer._writer_thread
+
+        def hook(args: Any) -> None:
+            if args.thread is thread:
+                self._thread_error = args.exc_value
+                return
+            previous(args)
+
+        self._hook = (hook, previous)
+        threading.excepthook = hook
 
     @property
     def frames(self) -> int:
@@ -186,13 +208,29 @@ class CanLog:
             except (ValueError, KeyError):
                 pass
         writer = self._writer
-        if isinstance(writer, can.SqliteWriter):
-            # python-can's SQLite writer thread leaves at stop() with frames still queued when
-            # it was behind (it checks its stop flag after each batch): let it drain first
-            deadline = time.monotonic() + SQLITE_DRAIN_S
-            while not writer.buffer.empty() and time.monotonic() < deadline:
-                time.sleep(0.01)
-        writer.stop()
+        with signals.deferred():       # the file is complete before a signal is delivered
+            if isinstance(writer, can.SqliteWriter):
+                self._close_sqlite(writer)
+            else:
+                writer.stop()
+
+    def _close_sqlite(self, writer: can.SqliteWriter) -> None:
+        # python-can's SQLite writer thread leaves at stop() with frames still queued when it
+        # was behind (it checks its stop flag after each batch): let it drain first
+        thread = writer._writer_thread
+        deadline = time.monotonic() + SQLITE_DRAIN_S
+        while not writer.buffer.empty() and thread.is_alive() and time.monotonic() < deadline:
+            time.sleep(0.01)
+        try:
+            writer.stop()
+        finally:
+            if self._hook is not None and threading.excepthook is self._hook[0]:
+                threading.excepthook = self._hook[1]
+        err = self._thread_error
+        if err is not None or writer.num_frames != self._tap.count:
+            why = "stopped" if err is None else f"{type(err).__name__}: {' '.join(str(err).split())[:200]}"
+            raise OSError(f"cannot write the CAN log {str(self.path)!r}: python-can's SQLite writer "
+                          f"failed ({why}); {writer.num_frames} of {self._tap.count} frames written")
 
     def __enter__(self) -> CanLog:
         return self

@@ -9,7 +9,10 @@ from __future__ import annotations
 import os
 import pathlib
 import subprocess
+import time
+import uuid
 from collections import defaultdict
+from collections.abc import Callable
 
 import numpy as np
 
@@ -113,33 +116,51 @@ def rerun_executable() -> pathlib.Path:
     return exe
 
 
-def verify_rrd(path: str | pathlib.Path, timeout_s: float = 120.0) -> None:
+def verify_rrd(path: str | pathlib.Path, timeout_s: float = 120.0, check_footers: bool = True) -> None:
     """Check with rerun's own ``rerun rrd verify`` that every column of the file deserialises as
     its declared component type (what the viewer will do). ``RrdReadError`` with rerun's message
-    otherwise."""
+    otherwise. ``check_footers=False``: a file without rerun's footer index is accepted (a long
+    recording whose compaction failed or was stopped, docs/recording.md)."""
     p = pathlib.Path(path)
     if not p.is_file():
         raise FileNotFoundError(f"recording {str(p)!r} does not exist")
     res = subprocess.run(
-        [str(rerun_executable()), "rrd", "verify", str(p)], capture_output=True, text=True, timeout=timeout_s
-    )
+        [str(rerun_executable()), "rrd", "verify", f"--check-footers={str(check_footers).lower()}", str(p)],
+        capture_output=True, text=True, timeout=timeout_s)
     if res.returncode != 0:
         raise RrdReadError(f"rerun rrd verify {str(p)!r} failed: {(res.stderr or res.stdout).strip()}")
 
 
-def compact_rrd(path: str | pathlib.Path, timeout_s: float = 600.0) -> tuple[int, int]:
+def compact_rrd(path: str | pathlib.Path, timeout_s: float = 600.0,
+                should_stop: Callable[[], bool] | None = None) -> tuple[int, int]:
     """Rewrite ``path`` with rerun's own ``rerun rrd optimize`` (chunks merged into fewer, larger
     ones: the viewer loads it faster and it is smaller). Written to a temporary file beside it and
     renamed over it only when rerun succeeded, so the original survives any failure (then
-    ``RrdReadError``). Returns the sizes (bytes) before and after."""
+    ``RrdReadError``), a timeout, and ``should_stop()`` turning true (polled every 50 ms: rerun is
+    stopped, ``RrdReadError``). Returns the sizes (bytes) before and after."""
     p = pathlib.Path(path)
     before = p.stat().st_size
-    tmp = p.with_name(f".{p.name}.compact.rrd")
+    # a short name whatever the recording's (a 255-byte name must still be compacted)
+    tmp = p.with_name(f".compact-{os.getpid()}-{uuid.uuid4().hex[:8]}.rrd")
     try:
-        res = subprocess.run([str(rerun_executable()), "rrd", "optimize", str(p), "-o", str(tmp)],
-                             capture_output=True, text=True, timeout=timeout_s)
-        if res.returncode != 0 or not tmp.is_file():
-            raise RrdReadError(f"rerun rrd optimize {str(p)!r} failed: {(res.stderr or res.stdout).strip()}")
+        with subprocess.Popen([str(rerun_executable()), "rrd", "optimize", str(p), "-o", str(tmp)],
+                              stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True) as proc:
+            deadline = time.monotonic() + timeout_s
+            try:
+                while proc.poll() is None:
+                    if should_stop is not None and should_stop():
+                        raise RrdReadError(f"rerun rrd optimize {str(p)!r}: stopped by a signal")
+                    if time.monotonic() > deadline:
+                        raise RrdReadError(f"rerun rrd optimize {str(p)!r}: no result in {timeout_s:g} s")
+                    time.sleep(0.05)
+            except BaseException:
+                proc.kill()
+                proc.wait()
+                raise
+            out = proc.stdout.read() if proc.stdout is not None else ""
+        if proc.returncode != 0 or not tmp.is_file():
+            last = out.strip().splitlines()[-1] if out.strip() else f"exit {proc.returncode}"
+            raise RrdReadError(f"rerun rrd optimize {str(p)!r} failed: {last}")
         os.replace(tmp, p)
     finally:
         tmp.unlink(missing_ok=True)

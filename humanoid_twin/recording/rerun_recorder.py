@@ -22,10 +22,12 @@ unrecorded one.
 from __future__ import annotations
 
 import atexit
+import contextlib
 import math
 import os
 import pathlib
 import struct
+import sys
 import threading
 import time
 import uuid
@@ -40,6 +42,7 @@ import pyarrow as pa
 os.environ.setdefault("RUST_LOG", "warn,re_log_encoding::rrd::file_sink=error")
 import rerun as rr  # noqa: E402
 
+from humanoid_twin import signals
 from humanoid_twin.clock import US_PER_S
 from humanoid_twin.hardware import FOOT_OF_SCU, N_SPECIAL_SENSORS, PWM_PERIOD_US
 from humanoid_twin.plant.plant import WXYZ_TO_XYZW
@@ -173,6 +176,7 @@ class Recorder:
         self._sending = False
         self.compact = compact
         self.size_before_compaction: int | None = None
+        self.compaction_error: str | None = None   # why the compaction at close kept the file as is
         self.compact_s = 0.0          # wall time of the compaction at close (not in wall_s)
         self._t0_us = twin.clock.now_us
         self._n = 0
@@ -501,6 +505,13 @@ class Recorder:
         (``atexit``), so an interrupted program leaves a file ``rerun rrd verify`` accepts."""
         if self._closed:
             return
+        # the last writes and the compaction are not cut in the middle by SIGINT / SIGTERM: a
+        # signal waits for the file to be complete, and stops a compaction under way (the file
+        # then stays as recorded), humanoid_twin/signals.py
+        with signals.deferred():
+            self._close(timeout_s)
+
+    def _close(self, timeout_s: float) -> None:
         w0 = time.perf_counter()
         interrupted_send = self._sending
         try:
@@ -529,11 +540,33 @@ class Recorder:
                     self.rec.disconnect()
                 self.wall_s += time.perf_counter() - w0
                 if self.compact and not writer_failed:
-                    from humanoid_twin.recording.readback import compact_rrd
+                    self._compact()
 
-                    w1 = time.perf_counter()
-                    self.size_before_compaction, _ = compact_rrd(self.path)
-                    self.compact_s = time.perf_counter() - w1
+    def _compact(self) -> None:
+        """Compact the closed file. A first SIGINT/SIGTERM lets it finish (about 1 s per
+        simulated minute: the file then has rerun's footer and passes ``rerun rrd verify``); a
+        second one stops it. A compaction that fails or is stopped (no room for its copy, rerun
+        failing, two signals) keeps the file as recorded: complete, readable by rerun and its
+        viewer, without the footer index (``compaction_error`` says why; docs/recording.md)."""
+        from humanoid_twin.recording.readback import RrdReadError, compact_rrd
+
+        told = [False]
+
+        def stop() -> bool:
+            n = signals.pending()
+            if n == 1 and not told[0]:
+                told[0] = True
+                with contextlib.suppress(OSError):
+                    sys.stderr.write("humanoid-twin: finishing the recording's compaction (a second "
+                                     "signal stops it and keeps the recording uncompacted)\n")
+            return n >= 2
+
+        w1 = time.perf_counter()
+        try:
+            self.size_before_compaction, _ = compact_rrd(self.path, should_stop=stop)
+        except (RrdReadError, OSError) as exc:
+            self.compaction_error = " ".join(str(exc).split())[:300]
+        self.compact_s = time.perf_counter() - w1
 
     @property
     def closed(self) -> bool:

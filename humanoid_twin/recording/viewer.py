@@ -100,17 +100,21 @@ def view(path: str | pathlib.Path, *, web: bool = False, web_port: int = DEFAULT
                               "and open the printed URL in a browser")
         cmd = native_viewer_command(path)
     proc = subprocess.Popen(cmd)
+    got: list[int] = []
 
     def _forward(signum: int, frame: object) -> None:   # SIGTERM/SIGHUP: stop rerun too, not orphan it
+        got.append(signum)
         proc.terminate()
 
     old = {sig: signal.signal(sig, _forward) for sig in (signal.SIGTERM, signal.SIGHUP)}
     try:
-        return proc.wait()
+        code = proc.wait()
+        # stopped by a signal: 128 + its number, as run does (143 for SIGTERM), not rerun's own code
+        return 128 + got[0] if got else code
     except KeyboardInterrupt:      # Ctrl-C reaches rerun too (same process group)
         proc.terminate()
         proc.wait(10)
-        return 0
+        return 130
     finally:
         for sig, handler in old.items():
             signal.signal(sig, handler)

@@ -356,8 +356,12 @@ def load_law(ref: str) -> LawFactory:
         raise LawError(f"law {ref!r} is not a class (got {type(obj).__name__})")
     try:
         probe = obj()
-    except Exception as exc:
-        raise LawError(f"law {ref!r} cannot be made with no arguments: {type(exc).__name__}: {exc}") from None
+    except BaseException as exc:       # a user's class (SystemExit included): a bad --law
+        from humanoid_twin.containment import describe, user_fault
+
+        if not user_fault(exc):
+            raise
+        raise LawError(f"law {ref!r} cannot be made with no arguments: {describe(exc)}") from None
     if not callable(getattr(probe, "step", None)):
         raise LawError(f"law {ref!r} has no step(inputs) method")
     if getattr(probe, "output", VELOCITY) not in (VELOCITY, POSITION):
@@ -400,6 +404,15 @@ def resolve_laws(laws: Mapping[int | str, Any] | Iterable[tuple[int | str, Any]]
 def install_laws(twin: Any, laws: Mapping[int | str, Any] | Iterable[tuple[int | str, Any]]) -> None:
     """Put the given laws on every Slave of ``twin`` (each board gets its own instance), replacing
     the built-in law of each control type named: ``install_laws(twin, {"balance": MyLaw})``."""
+    from humanoid_twin.containment import describe, user_fault
+
     for ctype, factory in resolve_laws(laws).items():
         for slave in twin.slaves.values():
-            slave.servo.set_law(ctype, factory())
+            try:
+                law = factory()
+            except BaseException as exc:   # a user's class: its instance for this board failed
+                if not user_fault(exc):
+                    raise
+                raise LawError(f"law {getattr(factory, '__qualname__', '?')!s:.80} cannot be made for "
+                               f"SCU {slave.address}: {describe(exc)}") from None
+            slave.servo.set_law(ctype, law)

@@ -71,8 +71,8 @@ cdef class ServoControl:
     cpdef controller(self, object measured, long cop_x, long cop_y, bint loaded, object types,
                      object forces=*)
     cpdef _start(self, object law, long i)
-    @cython.locals(n=cython.Py_ssize_t, position=bint, lo=cython.longlong, hi=cython.longlong,
-                   j=cython.long)
+    # issue 24: what a law returns is judged by containment.law_output (guarded len/items/repr)
+    @cython.locals(position=bint, lo=cython.longlong, hi=cython.longlong)
     cpdef object _run(self, object law, long t, LawInputs inp)
     cpdef _stop(self, object law, long t, object reason)
     @cython.locals(inp=LawInputs, c0=Control, c1=Control, c2=Control, f0=cython.longlong,

@@ -32,6 +32,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from typing import Any
 
+from humanoid_twin.containment import describe, law_output, user_fault
 from humanoid_twin.hardware import FORCE_CALIBRATION_VALUE, N_SERVOS, N_SPECIAL_SENSORS, POT_COUNTS_PER_DEG
 from humanoid_twin.protocol.wire import POS_LIMIT_DEG, ControlType
 from humanoid_twin.slave.data import divround
@@ -354,39 +355,32 @@ class ServoControl:
     def _start(self, law: ControlLaw, i: int) -> None:
         try:
             law.start(i, self.inputs)
-        except Exception as exc:   # a user's law: any failure stops it, named
-            self._stop(law, self._type_of(law), f"start({i}) raised {type(exc).__name__}: {exc}")
+        except BaseException as exc:   # a user's law: any failure stops it, named (containment.py)
+            if not user_fault(exc):
+                raise
+            self._stop(law, self._type_of(law), f"start({i}) raised {describe(exc)}")
 
     def _type_of(self, law: ControlLaw) -> int:
         return next((t for t, x in self.laws.items() if x is law), BALANCE_CONTROL)
 
     def _run(self, law: ControlLaw, t: int, inp: LawInputs) -> Sequence[int] | None:
-        """One step of ``law``; None (and the law stopped) if it raised or returned bad values."""
+        """One step of ``law``; None (and the law stopped) if it raised or returned bad values
+        (judged inside the guard, humanoid_twin/containment.py)."""
         try:
             values = law.step(inp)
-        except Exception as exc:   # a user's law: any failure stops it, named
-            self._stop(law, t, f"step raised {type(exc).__name__}: {exc}")
-            return None
-        try:
-            n = len(values)
-        except TypeError:
-            n = -1
-        if n != N_SERVOS:
-            self._stop(law, t, f"step returned {values!r}: expected {N_SERVOS} ints, one per servo")
+        except BaseException as exc:   # a user's law: any failure stops it, named
+            if not user_fault(exc):
+                raise
+            self._stop(law, t, f"step raised {describe(exc)}")
             return None
         position = law.output == POSITION
         lo, hi = (-POS_LIMIT_DEG, POS_LIMIT_DEG) if position else (VELOCITY_MIN, VELOCITY_MAX)
-        for j in inp.servos:
-            v = values[j]
-            if type(v) is not int:
-                self._stop(law, t, f"step returned {v!r} ({type(v).__name__}) for servo {j}: the firmware "
-                           "computes with ints only")
-                return None
-            if not lo <= v <= hi:
-                what = "position (degrees)" if position else "velocity (1/65536 degree per tick)"
-                self._stop(law, t, f"step returned {what} {v} for servo {j}, outside {lo}..{hi}")
-                return None
-        return values
+        what = "position (degrees)" if position else "velocity (1/65536 degree per tick)"
+        checked, why = law_output(values, inp.servos, N_SERVOS, lo, hi, what)
+        if why is not None:
+            self._stop(law, t, why)
+            return None
+        return checked
 
     def _stop(self, law: ControlLaw, t: int, reason: str) -> None:
         """Stop the law of control type ``t``: its servos hold their last output from now on."""

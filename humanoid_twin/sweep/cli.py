@@ -4,16 +4,17 @@ from __future__ import annotations
 
 import argparse
 import os
-import signal
 import sys
 from pathlib import Path
 from typing import Any
 
-from humanoid_twin.cli.argtypes import count, positive_seconds
+from humanoid_twin.cli.argtypes import count, wall_seconds
 from humanoid_twin.sweep.engine import (
     BACKENDS,
     DEFAULT_TIMEOUT_S,
+    MAX_POINTS,
     RunCli,
+    _key_value,
     check_backend,
     grid,
     run_sweep,
@@ -51,7 +52,7 @@ def add_sweep_parser(sub: Any, scenarios: tuple[str, ...]) -> argparse.ArgumentP
                    help="the table; runs already in it are skipped (runs with an error run again)")
     p.add_argument("--recordings", type=Path, metavar="DIR", help="write one .rrd per run into DIR "
                    "(default: no recordings)")
-    p.add_argument("--timeout", type=positive_seconds, default=DEFAULT_TIMEOUT_S, metavar="S",
+    p.add_argument("--timeout", type=wall_seconds, default=DEFAULT_TIMEOUT_S, metavar="S",
                    help=f"a run taking longer is stopped and is a row with an error (default "
                    f"{DEFAULT_TIMEOUT_S:g} s)")
     p.add_argument("--plot", type=Path, metavar="FILE.png", help="plot --metric against --x")
@@ -86,6 +87,11 @@ def parse_params(specs: list[str]) -> dict[str, list[str]]:
             raise SweepError(f"--param {name} given twice")
         if len(set(vals)) != len(vals):
             raise SweepError(f"--param {spec!r}: a value is repeated")
+        typed = [_key_value(v) for v in vals]     # 10 and 10.0 are one grid point (issue 24)
+        if len(set(typed)) != len(typed):
+            dup = next(v for i, v in enumerate(vals) if typed[i] in typed[:i])
+            raise SweepError(f"--param {spec!r}: a value is repeated ({dup} is the same value as an "
+                             "earlier one: the same run twice)")
         params[name] = vals
     return params
 
@@ -123,18 +129,35 @@ def plan_sweep(args: argparse.Namespace, parser: argparse.ArgumentParser
             raise SweepError(f"--{name} is given both as a run option and as --param {name}")
         for v in values:      # run's own checks, one line and exit 2 on a bad value
             parser.parse_args(["run", args.scenario, "--no-record", *run_args, f"--{name}={v}"])
+    n_points = len(seeds)
+    for values in params.values():
+        n_points *= len(values)
+    if n_points > MAX_POINTS:
+        raise SweepError(f"{n_points} runs: a sweep runs at most {MAX_POINTS} (split it)")
+    if any(not 0 <= sd <= 2**32 - 1 for sd in seeds):
+        raise SweepError("--param seed: seeds are 0..4294967295")
+    _check_every_point(args, parser, run_args, params, seeds)
     table_format(args.out)
     _writable_dir(args.out, "--out")
     if args.out.exists():
         try:
-            read_table(args.out)
+            rows = read_table(args.out)
         except Exception as exc:  # noqa: BLE001 - whatever the reader says, it is not a table
             raise SweepError(f"--out {args.out} exists and is not a sweep table ({exc})") from None
+        _check_is_sweep_table(args.out, rows)
     check_backend(args.backend)
     if args.address is not None and args.backend != "ray":
         raise SweepError("--address is for --backend ray")
-    if args.recordings is not None and args.recordings.exists() and not args.recordings.is_dir():
-        raise SweepError(f"--recordings {args.recordings} is not a directory")
+    if args.backend == "ray" and args.address is not None:
+        check_ray_address(args.address)
+    if args.recordings is not None:
+        if args.recordings.exists() and not args.recordings.is_dir():
+            raise SweepError(f"--recordings {args.recordings} is not a directory")
+        where = args.recordings if args.recordings.exists() else args.recordings.resolve().parent
+        while not where.exists():
+            where = where.parent
+        if not os.access(where, os.W_OK):
+            raise SweepError(f"--recordings {args.recordings} is not writable")
     if args.plot is not None:
         if args.plot.suffix.lower() != ".png":
             raise SweepError(f"--plot {args.plot}: a plot ends in .png")
@@ -147,6 +170,72 @@ def plan_sweep(args: argparse.Namespace, parser: argparse.ArgumentParser
         raise SweepError("--metric and --x go with --plot FILE.png")
     recordings = None if args.recordings is None else str(args.recordings)
     return params, seeds, RunCli(args.scenario, tuple(run_args), recordings, args.timeout)
+
+
+def _check_every_point(args: argparse.Namespace, parser: argparse.ArgumentParser, run_args: list[str],
+                       params: dict[str, list[str]], seeds: list[int]) -> None:
+    """Every grid point through ``run``'s own checks (the planners' limits, the platform's tilt,
+    --duration, the faults' composition, a loadable --law / --host-controller ...) before any
+    run starts: one line, exit 2 (issue 24). A seed is checked once, on the first point."""
+    import itertools
+
+    from humanoid_twin.cli.main import _check_run_inputs
+    from humanoid_twin.controllers import ControllerError, controller_run_options
+
+    names = list(params)
+    loaded: set[tuple] = set()
+    for i, values in enumerate(itertools.product(*(params[n] for n in names))):
+        for seed in seeds if i == 0 else seeds[:1]:
+            argv = ["run", args.scenario, "--no-record", *run_args,
+                    *(f"--{n}={v}" for n, v in zip(names, values, strict=True)), f"--seed={seed}"]
+            ns = parser.parse_args(argv)
+            _check_run_inputs(ns)
+            key = (tuple(ns.law), ns.host_controller)
+            if key not in loaded:
+                loaded.add(key)
+                try:
+                    controller_run_options(ns)
+                except ControllerError as exc:
+                    raise SweepError(str(exc)) from None
+
+
+def _check_is_sweep_table(path: Path, rows: list[dict[str, Any]]) -> None:
+    """An existing ``--out`` is only rewritten when it is a sweep table: every row has ``seed``
+    and ``error`` columns (docs/sweeps.md)."""
+    if table_format(path) == "csv":
+        import csv
+
+        with open(path, newline="") as f:
+            header = next(csv.reader(f), [])
+    else:
+        header = list(rows[0]) if rows else []
+        if not rows:
+            import pyarrow.parquet as pq
+
+            header = pq.read_schema(path).names
+    if "seed" not in header or "error" not in header:
+        raise SweepError(f"--out {path} exists and is not a sweep table (no seed and error columns): "
+                         "not rewritten")
+
+
+def check_ray_address(address: str) -> None:
+    """``auto``, or ``HOST:PORT`` where something answers within 5 s (a Ray cluster's GCS):
+    :class:`SweepError` at once otherwise, instead of Ray retrying for minutes (issue 24)."""
+    import socket
+
+    if address in ("auto", "local"):
+        return
+    text = address.removeprefix("ray://")
+    host, sep, port = text.rpartition(":")
+    host = host.strip("[]")
+    if not sep or not host or not port.isascii() or not port.isdigit() or not 0 < int(port) < 65536:
+        raise SweepError(f"--address {address!r}: expected HOST:PORT (e.g. 10.0.0.5:6379) or auto")
+    try:
+        with socket.create_connection((host, int(port)), timeout=5.0):
+            pass
+    except (OSError, UnicodeError) as exc:
+        raise SweepError(f"--address {address}: no Ray cluster answers there "
+                         f"({getattr(exc, 'strerror', None) or exc})") from None
 
 
 def sweep_command(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
@@ -165,15 +254,21 @@ def sweep_command(args: argparse.Namespace, parser: argparse.ArgumentParser) -> 
         progress.write(f"sweep: {len(points)} runs of {args.scenario} on {where}"
                        f"{f' ({args.jobs} jobs)' if args.jobs else ''} into {args.out}\n")
 
-    def _interrupt(signum: int, frame: object) -> None:
-        raise KeyboardInterrupt   # SIGTERM like Ctrl-C: the table keeps every finished run, exit 130
+    from humanoid_twin import signals
 
-    previous = signal.signal(signal.SIGTERM, _interrupt)
     try:
+        # SIGINT / SIGTERM (humanoid_twin/signals.py): the runs in flight are stopped within ~2 s,
+        # the table keeps every finished run, exit 130 / 143
         rows = run_sweep(points, task, args.out, jobs=args.jobs, backend=args.backend,
                          address=args.address, progress=progress)
-    finally:
-        signal.signal(signal.SIGTERM, previous)
+    except KeyboardInterrupt as exc:
+        why = "terminated (SIGTERM)" if isinstance(exc, signals.Terminated) else "interrupted"
+        sys.stderr.write(f"humanoid-twin: {why}; {args.out} keeps every finished run (the same command "
+                         "resumes)\n")
+        return signals.exit_code(exc)
+    except SweepError as exc:
+        sys.stderr.write(f"humanoid-twin: error: {exc}\n")
+        return 2
     failed = sum(bool(r.get("error")) for r in rows)
     print(f"{args.out}: {len(rows)} runs, {failed} failed")
     if args.plot is not None:

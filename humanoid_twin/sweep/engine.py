@@ -18,6 +18,9 @@ from humanoid_twin.sweep.table import SweepError, cell, read_table, table_format
 
 BACKENDS = ("local", "ray")
 DEFAULT_TIMEOUT_S = 900.0
+MAX_POINTS = 100_000         # runs in one sweep (a larger grid is a usage error, not a MemoryError)
+STOP_GRACE_S = 2.0           # SIGTERM to the runs in flight, then SIGKILL after this
+KILL_MARGIN_S = 15.0         # a run past --timeout + this (it did not end itself) is killed
 # columns a re-run may change (timing); every other cell is the same whatever the backend and --jobs
 TIMING_COLUMNS = ("wall_s", "rtf")
 
@@ -98,6 +101,8 @@ class RunCli:
         argv = [sys.executable, "-m", "humanoid_twin.cli.main", "run", self.scenario, *self.run_args]
         argv += [f"--{name}={value}" for name, value in point.params]
         argv += [f"--seed={point.seed}", "--json", "--no-progress"]
+        if self.timeout is not None:     # the run ends itself, files closed (run --wall-timeout)
+            argv.append(f"--wall-timeout={self.timeout:g}")
         if self.recordings is None:
             argv.append("--no-record")
         else:
@@ -105,21 +110,107 @@ class RunCli:
         return argv
 
     def __call__(self, point: Point) -> dict[str, Any]:
+        backstop = None if self.timeout is None else self.timeout + KILL_MARGIN_S
         try:
-            proc = subprocess.run(self.argv(point), capture_output=True, text=True, timeout=self.timeout,
-                                  stdin=subprocess.DEVNULL)
+            proc = subprocess.run(self.argv(point), capture_output=True, text=True, timeout=backstop,
+                                  stdin=subprocess.DEVNULL, preexec_fn=_die_with_parent)
         except subprocess.TimeoutExpired:
-            raise RuntimeError(f"timeout: the run took more than {self.timeout:g} s") from None
-        lines = [ln for ln in proc.stdout.splitlines() if ln.strip()]
+            raise RuntimeError(self._timeout_message()) from None
+        return self.summary(proc.returncode, proc.stdout, proc.stderr)
+
+    def _timeout_message(self) -> str:
+        return f"timeout: the run took more than {self.timeout:g} s"
+
+    def summary(self, returncode: int, stdout: str, stderr: str) -> dict[str, Any]:
+        """The ``run --json`` summary of a finished run; RuntimeError (its row's error) otherwise."""
+        lines = [ln for ln in stdout.splitlines() if ln.strip()]
         # exit 0: done; exit 3: the supervisor ended the run in a safe state, a result like any other
-        if proc.returncode in (0, 3) and lines:
+        if returncode in (0, 3) and lines:
             try:
                 return json.loads(lines[-1])
             except json.JSONDecodeError:
                 pass
         # the whole of stderr (a traceback's every line), one line per cell: lines joined by " | "
-        err = [ln.strip() for ln in proc.stderr.splitlines() if ln.strip()]
-        raise RuntimeError(f"exit {proc.returncode}: {' | '.join(err) if err else 'no message'}")
+        err = [ln.strip() for ln in stderr.splitlines() if ln.strip()]
+        if returncode == 1 and err and "(--wall-timeout)" in err[-1]:
+            raise RuntimeError(self._timeout_message())
+        raise RuntimeError(f"exit {returncode}: {' | '.join(err) if err else 'no message'}")
+
+
+def _die_with_parent() -> None:
+    """In a run's process, before it starts: SIGTERM when the sweep dies, whatever kills it (Linux
+    ``PR_SET_PDEATHSIG``; elsewhere nothing), so no run outlives its sweep (issue 24)."""
+    import signal as _signal
+
+    try:
+        import ctypes
+
+        libc = ctypes.CDLL(None, use_errno=True)
+        libc.prctl(1, int(_signal.SIGTERM), 0, 0, 0)      # PR_SET_PDEATHSIG
+    except (OSError, AttributeError):
+        pass
+
+
+def _local_cli(task: RunCli, points: list[Point], jobs: int) -> Iterable[dict[str, Any]]:
+    """The local backend for ``run`` processes: ``jobs`` of them at a time, started here (no pool
+    of workers in between), so that stopping the sweep stops them: when the sweep ends for any
+    reason (SIGINT, SIGTERM, an error) each run in flight gets SIGTERM (it closes its files and
+    ends) and SIGKILL :data:`STOP_GRACE_S` later; a sweep killed hard takes them with it
+    (:func:`_die_with_parent`). A run past ``--timeout`` ends itself (``run --wall-timeout``);
+    one that does not is killed :data:`KILL_MARGIN_S` later."""
+    import tempfile
+
+    todo = list(reversed(points))
+    running: dict[subprocess.Popen, tuple[Point, float, Any, Any]] = {}
+    try:
+        while todo or running:
+            while todo and len(running) < jobs:
+                p = todo.pop()
+                out, err = tempfile.TemporaryFile("w+"), tempfile.TemporaryFile("w+")
+                proc = subprocess.Popen(task.argv(p), stdout=out, stderr=err, stdin=subprocess.DEVNULL,
+                                        text=True, preexec_fn=_die_with_parent)
+                running[proc] = (p, time.monotonic(), out, err)
+            time.sleep(0.02)
+            for proc, (p, t0, out, err) in list(running.items()):
+                late = task.timeout is not None and time.monotonic() - t0 > task.timeout + KILL_MARGIN_S
+                if proc.poll() is None and not late:
+                    continue
+                if late:
+                    proc.kill()
+                    proc.wait()
+                del running[proc]
+                row = p.row_prefix()
+                try:
+                    if late:
+                        raise RuntimeError(task._timeout_message())
+                    out.seek(0)
+                    err.seek(0)
+                    summary = task.summary(proc.returncode, out.read(), err.read())
+                    for k, v in summary.items():
+                        row.setdefault(k, cell(v))
+                    row["error"] = ""
+                except RuntimeError as exc:
+                    row["error"] = f"RuntimeError: {exc}".replace("\n", " ")
+                out.close()
+                err.close()
+                yield row
+    finally:
+        _stop_all(running)
+
+
+def _stop_all(running: dict[subprocess.Popen, Any]) -> None:
+    for proc in running:
+        if proc.poll() is None:
+            proc.terminate()
+    deadline = time.monotonic() + STOP_GRACE_S
+    for proc, (_, _, out, err) in running.items():
+        try:
+            proc.wait(max(0.0, deadline - time.monotonic()))
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait()
+        out.close()
+        err.close()
 
 
 def run_point(task: Task, point: Point) -> dict[str, Any]:
@@ -240,7 +331,12 @@ def _ray(task: Task, points: list[Point], jobs: int | None, address: str | None
         if address is None:
             kwargs["num_cpus"] = jobs or os.cpu_count() or 1
             kwargs.update(_loopback_ray())
-        ray.init(address=address, **kwargs)
+        try:
+            ray.init(address=address, **kwargs)
+        except Exception as exc:  # noqa: BLE001 - Ray's own flavours: no cluster, a bad address ...
+            first = (str(exc).strip().splitlines() or [type(exc).__name__])[0][:200]
+            raise SweepError(f"--backend ray{f' --address {address}' if address else ''}: cannot join "
+                             f"a Ray cluster: {type(exc).__name__}: {first}") from None
         started = True
     try:
         remote = ray.remote(num_cpus=1, max_retries=1)(run_point)
@@ -304,7 +400,12 @@ def run_sweep(points: Sequence[Point], task: Task, out: Path, *, jobs: int | Non
 
     try:
         if todo:
-            runs = _local(task, todo, jobs) if backend == "local" else _ray(task, todo, jobs, address)
+            if backend != "local":
+                runs = _ray(task, todo, jobs, address)
+            elif isinstance(task, RunCli):
+                runs = _local_cli(task, todo, jobs)
+            else:
+                runs = _local(task, todo, jobs)
             index = {p.key(): p.index for p in todo}
             for row in runs:
                 new[index[row_key(row, names)]] = row

@@ -130,7 +130,7 @@ def write_table(path: Path, rows: list[dict[str, Any]], columns: list[str]) -> N
                 f.flush()
                 os.fsync(f.fileno())
         os.chmod(tmp, 0o666 & ~_umask())      # like the other outputs (mkstemp makes 0600)
-        os.replace(tmp, path)
+        os.replace(tmp, path.resolve())       # through a symlink: beside its target (same disk)
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
