@@ -72,8 +72,11 @@ def test_the_wheel_installs_into_a_fresh_venv_and_runs_from_another_directory(tm
 
     # a machine without a C compiler: the same wheel build skips the compiled modules and the
     # package installs and runs from its source, only slower
+    # (from a fresh copy: the first build left its compiled modules in src/build/)
+    src2 = tmp_path / "src-no-compiler"
+    shutil.copytree(src, src2, ignore=shutil.ignore_patterns("build", "*.egg-info"))
     plain = tmp_path / "plain"
-    r = _run([*pip, "wheel", "-q", "--no-deps", "-w", str(plain), str(src)], tmp_path,
+    r = _run([*pip, "wheel", "-q", "--no-deps", "-w", str(plain), str(src2)], tmp_path,
              env={"CC": "false", "CXX": "false", "LDSHARED": "false"})
     assert r.returncode == 0, r.stderr
     (wheel,) = plain.glob("humanoid_twin-*.whl")
