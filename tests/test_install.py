@@ -85,6 +85,6 @@ def test_the_wheel_installs_into_a_fresh_venv_and_runs_from_another_directory(tm
     assert r.returncode == 0, r.stderr
     r = _run([exe, "--version"], work)
     assert r.returncode == 0 and r.stdout.strip().endswith("(core: python)"), r.stdout + r.stderr
-    r = _run([exe, "run", "stand", "--duration", "2", "--out", "plain.rrd", "--json", "--no-progress"], work)
+    r = _run([exe, "run", "stand", "--duration", "3", "--out", "plain.rrd", "--json", "--no-progress"], work)
     assert r.returncode == 0, r.stderr
     assert '"fell": false' in r.stdout.splitlines()[-1]
