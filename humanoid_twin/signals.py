@@ -58,12 +58,15 @@ def install() -> None:
         _state["installed"].setdefault(sig, prev)
 
 
-def restore() -> None:
-    """Put back the handlers :func:`install` replaced."""
+def restore(exiting: bool = False) -> None:
+    """Put back the handlers :func:`install` replaced; ``exiting``: the process ends now (the
+    console script), so SIGINT and SIGTERM are ignored instead: after the last rename a signal
+    changes nothing, and the interpreter's shutdown (rerun's, MuJoCo's) must not end by the raw
+    signal (exit -15) a run that has finished."""
     if not _main_thread():
         return
     for sig, prev in _state["installed"].items():
-        signal.signal(sig, signal.SIG_DFL if prev is None else prev)
+        signal.signal(sig, signal.SIG_IGN if exiting else signal.SIG_DFL if prev is None else prev)
     _state["installed"].clear()
 
 

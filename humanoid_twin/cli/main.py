@@ -669,7 +669,7 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt as exc:
         return _signalled(exc)
     finally:
-        signals.restore()
+        signals.restore(exiting=argv is None)     # argv None: the console script, about to exit
 
 
 def _signalled(exc: BaseException) -> int:
