@@ -407,17 +407,14 @@ class Supervisor:
 
     def _check_fall(self, now: int) -> None:
         """The balance rule of ready (:meth:`_check_balance`) on :meth:`boot_balance_margin_mm`."""
-        m = self.boot_balance_margin_mm()
-        if m is None or m > self.config.balance_margin_mm:
-            self._balance_since = None
-            return
-        if self._balance_since is None:
-            self._balance_since = now
-        elif now - self._balance_since >= self.config.balance_hold_ms * 1000:
-            self._fault(BALANCE, 0, now)
+        self._check_margin(self.boot_balance_margin_mm(), now)
 
     def _check_balance(self, now: int) -> None:
-        m = self.balance_margin_mm()
+        self._check_margin(self.balance_margin_mm(), now)
+
+    def _check_margin(self, m: float | None, now: int) -> None:
+        """The balance rule: a margin at or below ``balance_margin_mm`` for ``balance_hold_ms``
+        latches the balance fault (None: no margin to judge, the hold starts again)."""
         if m is None or m > self.config.balance_margin_mm:
             self._balance_since = None
             return
