@@ -15,23 +15,18 @@ docs/controllers.md is the how-to. Two ways to put your own controller on the tw
 
 from __future__ import annotations
 
-import argparse
 import functools
 import importlib
 import inspect
-import os
-import sys
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
 from humanoid_twin import host as _host
-from humanoid_twin.cli.argtypes import checked
 from humanoid_twin.containment import describe, user_fault
 from humanoid_twin.host.timebase import now as host_now
 from humanoid_twin.host.timebase import sleep as host_sleep
 from humanoid_twin.monitor import Monitor
-from humanoid_twin.slave.laws import LawError, load_law, parse_law_option
 
 __all__ = [
     "DEFAULT_HOST_PERIOD_MS",
@@ -40,8 +35,6 @@ __all__ = [
     "HostContext",
     "load_host_controller",
     "run_host_controller",
-    "add_controller_options",
-    "controller_run_options",
 ]
 
 DEFAULT_HOST_PERIOD_MS = 20
@@ -174,44 +167,3 @@ def _host_loop(ctx: HostContext, step: HostStep, until_s: float, period: float,
     rest = until_s - host_now(H)
     if rest > 0:
         host_sleep(H, rest)
-
-
-# ---------------------------------------------------------------------------------------------
-# CLI: `run --law TYPE=REF (repeatable) --host-controller MOD:FUNC --host-period-ms N`
-
-
-def add_controller_options(p: argparse.ArgumentParser) -> None:
-    """Add ``--law``, ``--host-controller`` and ``--host-period-ms`` to ``run`` (docs/controllers.md)."""
-    p.add_argument("--law", action="append", default=[], metavar="TYPE=MODULE:CLASS",
-                   help="run your firmware control law for one control type (none, locomotion, reaction, "
-                   "balance) on every Slave; MODULE:CLASS or an entry point of group humanoid_twin.laws; "
-                   "repeatable")
-    p.add_argument("--host-controller", metavar="MODULE:FUNCTION",
-                   help="call FUNCTION(ctx) every --host-period-ms of simulated time with the host toolbox "
-                   "bound to the twin's port and the ground-truth monitor")
-    p.add_argument("--host-period-ms", type=_period_ms, default=DEFAULT_HOST_PERIOD_MS, metavar="N",
-                   help="period of --host-controller in ms of simulated time "
-                   f"(default {DEFAULT_HOST_PERIOD_MS})")
-
-
-_period_ms = checked(float, "a number of milliseconds", lambda v: 1 <= v <= 10_000, "must be 1..10000 ms")
-
-
-def controller_run_options(args: argparse.Namespace) -> dict[str, Any]:
-    """The ``RunOptions`` fields of the controller options, loaded and checked before the run
-    starts (so a bad value writes nothing). Raises :class:`ControllerError` (a usage error).
-    As ``python -m`` does, the current directory is importable (``--law balance=mylaw:MyLaw``
-    finds ``./mylaw.py``)."""
-    if (getattr(args, "law", None) or getattr(args, "host_controller", None)) and os.getcwd() not in sys.path:
-        sys.path.insert(0, os.getcwd())
-    laws: list[tuple[int, Any]] = []
-    try:
-        for text in getattr(args, "law", None) or ():
-            ctype, ref = parse_law_option(text)
-            laws.append((ctype, load_law(ref)))
-    except LawError as exc:
-        raise ControllerError(str(exc)) from None
-    ctl = getattr(args, "host_controller", None)
-    step = load_host_controller(ctl) if ctl else None
-    return {"laws": tuple(laws), "host_controller": step,
-            "host_period_ms": getattr(args, "host_period_ms", DEFAULT_HOST_PERIOD_MS)}

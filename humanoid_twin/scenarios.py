@@ -1,35 +1,40 @@
-"""Scenarios a user runs headless: ``humanoid-twin run stand|flexao|inclinar|levantar_perna``.
+"""Scenarios a user runs headless: ``humanoid-twin run stand|flexao|inclinar|levantar_perna``,
+or one of the user's own (``run path/to/file.py:NAME``, ``run package.module:NAME``, an entry
+point of the group ``humanoid_twin.scenarios``; docs/scenarios.md).
 
 A scenario is host code talking to the in-process twin through its pyserial URL, exactly as the
 MATLAB toolbox talked to the robot: :func:`boot` (positions, period, PWM on: the Slaves
-calibrate), set the controllers, run the planner's motions with ``exe_traj``, let the robot
-settle. Meanwhile a :class:`humanoid_twin.monitor.Monitor` samples the plant's ground truth every
-20 ms for the summary (docs/scenarios.md).
+calibrate), then the scenario's own program, then the robot settles. A :class:`Scenario` carries
+that program as its :meth:`Scenario.drive` hook (in the manner of dm_control's tasks): by default
+``exe_traj`` of its :class:`Plan` (the planner's ``pos_apply``, ``k``, ``t`` of seed 000 table 23),
+or, for a scenario that does not move (``stand``), :func:`hold` of the plan's gains. A user's
+scenario subclasses :class:`Scenario` and overrides ``drive`` (and :meth:`Scenario.motion_s`).
 
-The scenarios are a registry (:data:`REGISTRY`, in the style of dm_control's suite): one scenario
-is one small factory below, decorated with :func:`scenario`, that returns its :class:`Plan` (the
-planner's ``pos_apply``, ``k``, ``t`` of seed 000 table 23) from ``T``, ``motion`` and ``perna``.
-Adding a scenario is adding one factory here: the CLI's choices, :func:`plan` and :func:`run`
-read the registry. :func:`boot` is the one boot sequence (``run``, ``scripts/balance_study.py``
-and the tests' ``booted_twin`` fixture use it).
+The built-in scenarios are a registry (:data:`REGISTRY`, in the style of dm_control's suite): one
+scenario is one small factory below, decorated with :func:`scenario`, that returns its plan from
+``T``, ``motion`` and ``perna``. :func:`run` is the whole run: plan -> :class:`~humanoid_twin.rig.Rig`
+-> boot -> drive -> settle -> summary (humanoid_twin/summary.py).
 """
 
 from __future__ import annotations
 
-import math
+import hashlib
+import importlib
+import importlib.util
+import sys
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from humanoid_twin.clock import US_PER_S
+from humanoid_twin.containment import describe, user_fault
 from humanoid_twin.controllers import load_host_controller, run_host_controller
-from humanoid_twin.faults import FaultInjector, FaultSpec
 from humanoid_twin.host import drivers
-from humanoid_twin.host.motion import exe_traj, power_on, send_gains
+from humanoid_twin.host.motion import exe_traj, send_gains
 from humanoid_twin.host.planners import (
     BALANCE_MOTIONS,
     LEG_SCUS,
@@ -40,34 +45,51 @@ from humanoid_twin.host.planners import (
     levantar_perna,
     with_control,
 )
-from humanoid_twin.host.timebase import sleep as host_sleep
-from humanoid_twin.master.supervisor import ESTOP, SAFE, SupervisorConfig
-from humanoid_twin.monitor import Monitor
 from humanoid_twin.protocol.wire import ControlType
-from humanoid_twin.slave.laws import LawError, install_laws
-from humanoid_twin.twin import Twin
+from humanoid_twin.rig import (
+    BOOT_TIMEOUT_S,
+    TILT_RATE_DEG_S,
+    BootError,
+    Rig,
+    RigOptions,
+    ScenarioError,
+    boot,
+    tilt_profile,
+)
+from humanoid_twin.slave.laws import LawError
+from humanoid_twin.summary import (
+    SLIP_HELD_MM,
+    SUMMARY_KEYS,
+    build_summary,
+    note_recording,
+    outcome,
+    summary_keys_markdown,
+)
+
+if TYPE_CHECKING:
+    from humanoid_twin.twin import Twin
 
 CONTROL_CHOICES: dict[str, int] = {t.label: t for t in ControlType}   # run --control
-BOOT_TIMEOUT_S = 5.0
 # the boot cannot end sooner: the Slaves' calibration waits 100 PWM periods, then averages 25
 # (seed 000 SERVO ``calibration``); a --duration below it is refused before the run starts
 BOOT_MIN_S = (100 + 25) * 0.020
-TILT_RATE_DEG_S = 1.0       # "the floor platform tilts slowly": 1 degree per second
 SETTLE_S = 2.0
-
-
-class ScenarioError(RuntimeError):
-    """A scenario could not run (the twin did not boot, a request failed ...)."""
+ENTRY_POINT_GROUP = "humanoid_twin.scenarios"     # a package's scenarios, by name
 
 
 class ScenarioInputError(ScenarioError):
     """The options ask for something the run cannot do (a ``--duration`` shorter than the boot)."""
 
 
+class ScenarioLoadError(ScenarioInputError):
+    """A scenario reference that names no scenario (cannot be imported, or is not a
+    :class:`Scenario`): one line naming it."""
+
+
 class _DurationReachedError(BaseException):
-    """Raised by the clock at ``--duration`` when that instant falls inside the motion: the run is
-    cut there and its summary says ``completed: false``. A ``BaseException``: a host controller's
-    ``except Exception`` does not swallow it."""
+    """Raised by the clock at ``--duration`` when that instant falls inside the scenario's program:
+    the run is cut there and its summary says ``completed: false``. A ``BaseException``: a host
+    controller's (or a user scenario's) ``except Exception`` does not swallow it."""
 
 
 class _HostBoundReachedError(BaseException):
@@ -79,27 +101,6 @@ class _WallTimeoutError(BaseException):
     """SIGALRM at ``wall_timeout`` wall seconds (``run --wall-timeout``)."""
 
 
-class BootError(ScenarioError):
-    """:func:`boot` failed; ``port`` is the host end of the link, open (the run may go on)."""
-
-    def __init__(self, message: str, port: Any) -> None:
-        super().__init__(message)
-        self.port = port
-
-
-def boot(twin: Twin, timeout: float = BOOT_TIMEOUT_S) -> Any:
-    """The one boot sequence: open the host end of the twin's RS-232 link and ``power_on`` every
-    board (positions 0, movement period, PWM on; the Slaves calibrate). Returns the open port.
-    Attach whatever observes the run (monitor, recorder, CAN log, faults) before calling it.
-    :class:`BootError` (with the port) if a request fails."""
-    H = twin.open_port()
-    try:
-        power_on(H, timeout=timeout)
-    except drivers.CommError as exc:
-        raise BootError(f"the twin did not boot: {exc}", H) from exc
-    return H
-
-
 def hold(H: Any, plan: Plan, scus: tuple[int, ...] = LEG_SCUS) -> None:
     """A scenario without motions: send the gains and control types of the plan's first motion
     to the boards ``scus`` (``applycontrol``) and let the firmware hold the posture."""
@@ -108,35 +109,21 @@ def hold(H: Any, plan: Plan, scus: tuple[int, ...] = LEG_SCUS) -> None:
 
 
 @dataclass
-class RunOptions:
-    """The ``humanoid-twin run`` options (docs/scenarios.md)."""
+class RunOptions(RigOptions):
+    """The ``humanoid-twin run`` options (docs/scenarios.md); the rig's own (seed, faults, laws,
+    outputs ...) are :class:`~humanoid_twin.rig.RigOptions`'s, given by keyword."""
 
-    scenario: str = "stand"
+    # a registered name, a reference (``file.py:NAME``, ``module:NAME``, an entry point's name)
+    # or a Scenario object
+    scenario: str | Scenario = "stand"
     duration: float | None = None
     T: float | None = None
     motion: float | None = None
     perna: int = 1
-    out: Path | None = None
-    can_log: Path | None = None
-    can_log_name: str | None = None     # the log's final file name, when can_log is a temporary one
     control: str | None = None
-    tilt: float = 0.0
-    seed: int = 0
     progress: bool = True
-    # The ground-truth monitor behind fell / trunk tilt / CoP margin / CoP error. Off only for
-    # scripts/bench.py, which times the twin itself (like recording, it is instrumentation).
-    monitor: bool = True
-    # python-can interface of the CAN wire: the project's own "humanoid_twin" (frames delivered in
-    # virtual time only to the nodes whose slide-23 filters take them), or "virtual" / "socketcan"
-    can_interface: str = "humanoid_twin"
-    can_channel: str | None = None
-    # injected faults (humanoid_twin/faults.py) and the supervisor's thresholds (docs/supervisor.md)
-    faults: tuple[FaultSpec, ...] = ()
-    supervisor: SupervisorConfig | None = None
-    # user controllers (humanoid_twin/controllers.py, docs/controllers.md): firmware laws per
-    # control type ((type name or number, law class or "module:Class"), ...), and a PC-side
-    # step(ctx) called every host_period_ms once the scenario's own host commands are sent
-    laws: tuple[tuple[int | str, Any], ...] = ()
+    # a PC-side step(ctx) called every host_period_ms once the scenario's own program is done
+    # (humanoid_twin/controllers.py, docs/controllers.md)
     host_controller: Callable[..., Any] | str | None = None
     host_period_ms: float = 20.0
     # wall seconds the run may take (None: unbounded); beyond it the run ends with ScenarioError,
@@ -145,7 +132,6 @@ class RunOptions:
 
 
 _BALANCE_TYPES = (ControlType.REACTION_CONTROL, ControlType.BALANCE_CONTROL)
-FOOT_SCUS = (1, 2)      # the leg boards (foot lateral, foot front, knee): the summary's ``control``
 
 
 @dataclass
@@ -188,10 +174,15 @@ Factory = Callable[[float | None, float | None, int], Plan]
 
 @dataclass(frozen=True)
 class Scenario:
-    """One registered scenario: its name, its factory ``(T, motion, perna) -> Plan`` (``None``
-    = the scenario's default), and whether it moves (``exe_traj`` the plan's motions) or holds
-    the boot posture with the plan's gains (:func:`hold`); ``double_support``: both feet stay
-    down all along (``--control reaction|balance`` keeps the leader/follower split)."""
+    """One scenario: its name, its factory ``(T, motion, perna) -> Plan`` (``None`` = the
+    scenario's default), whether it moves (its default :meth:`drive` runs the plan's motions with
+    ``exe_traj``) or holds the boot posture with the plan's gains (:func:`hold`), and
+    ``double_support``: both feet stay down all along (``--control reaction|balance`` keeps the
+    leader/follower split).
+
+    A user's scenario subclasses it and overrides :meth:`drive` (the program the host runs once
+    the twin has booted) and, when that program takes a time of its own, :meth:`motion_s`
+    (docs/scenarios.md)."""
 
     name: str
     factory: Factory
@@ -202,6 +193,22 @@ class Scenario:
     def plan(self, T: float | None = None, motion: float | None = None, perna: int = 1) -> Plan:
         """The scenario's plan with its defaults for the arguments left ``None``."""
         return self.factory(T, motion, perna)
+
+    def motion_s(self, plan: Plan) -> float:
+        """How long :meth:`drive` runs (simulated s): the plan's motions, 0 for a scenario that
+        holds. The run lasts the boot, this (or the platform's tilt, if longer), then 2 s of
+        settling; a ``--duration`` that ends sooner cuts the program there."""
+        return float(np.sum(plan.t)) if self.moves else 0.0
+
+    def drive(self, rig: Rig, plan: Plan) -> None:
+        """The scenario's program, called once the twin has booted: ``rig.H`` is the host's
+        port, ``rig.twin`` the twin, ``rig.monitor`` the ground truth; time advances as the
+        program talks to the twin (each request, :meth:`~humanoid_twin.rig.Rig.sleep`). Default:
+        ``exe_traj`` of the plan's motions, or :func:`hold` for a scenario that does not move."""
+        if self.moves:
+            exe_traj(rig.H, plan.t, plan.pos_apply, 0.0, k=plan.k)
+        else:
+            hold(rig.H, plan)
 
 
 REGISTRY: dict[str, Scenario] = {}
@@ -286,27 +293,126 @@ def _levantar_perna(T: float | None, motion: float | None, perna: int) -> Plan:
     return Plan(pos, k, t, lead=(support,) * n, single=single)
 
 
-SCENARIOS: tuple[str, ...] = tuple(REGISTRY)   # the CLI's choices, in registration order
+SCENARIOS: tuple[str, ...] = tuple(REGISTRY)   # the built-in scenarios, in registration order
 DOUBLE_SUPPORT_SCENARIOS: tuple[str, ...] = tuple(n for n, s in REGISTRY.items() if s.double_support)
 
 
-def plan(scenario: str, T: float | None = None, motion: float | None = None, perna: int = 1) -> Plan:
-    """The plan of the registered scenario ``scenario`` with its defaults."""
-    return get_scenario(scenario).plan(T, motion, perna)
+# -- user scenarios ------------------------------------------------------------------------------
+_loaded: dict[str, Scenario] = {}
 
 
-def tilt_profile(
-    target_deg: float, start_s: float, rate_deg_s: float = TILT_RATE_DEG_S
-) -> Callable[[float], float]:
-    """Platform pitch vs time: flat until ``start_s``, then a ramp at ``rate_deg_s`` to ``target_deg``."""
+def is_reference(ref: str) -> bool:
+    """``file.py:NAME`` or ``module:NAME`` (a scenario to import), not a name."""
+    return ":" in ref
 
-    def profile(t: float) -> float:
-        if t <= start_s or target_deg == 0:
-            return 0.0
-        ramp = (t - start_s) * rate_deg_s
-        return math.copysign(min(abs(target_deg), ramp), target_deg)
 
-    return profile
+def entry_point_names() -> list[str]:
+    """The scenarios installed packages declare in the group :data:`ENTRY_POINT_GROUP`."""
+    from importlib.metadata import entry_points
+
+    return sorted(ep.name for ep in entry_points(group=ENTRY_POINT_GROUP))
+
+
+def load_scenario(ref: str | Scenario) -> Scenario:
+    """The scenario ``ref`` names: a registered name, ``path/to/file.py:NAME``,
+    ``package.module:NAME``, or the name of an entry point of the group :data:`ENTRY_POINT_GROUP`
+    (a :class:`Scenario` is returned as it is). NAME may be dotted (``module:Class.attr``) and
+    must be a :class:`Scenario` object. :class:`ScenarioLoadError` (one line naming ``ref``)
+    otherwise; each reference is imported once per process."""
+    if isinstance(ref, Scenario):
+        return ref
+    ref = str(ref).strip()
+    if ref in REGISTRY:
+        return REGISTRY[ref]
+    if ref in _loaded:
+        return _loaded[ref]
+    if is_reference(ref):
+        where, _, attr = ref.rpartition(":")
+        if not where or not attr:
+            raise ScenarioLoadError(f"scenario {ref!r}: expected FILE.py:NAME or MODULE:NAME")
+        obj: Any = _import(ref, where)
+        for part in attr.split("."):
+            try:
+                obj = getattr(obj, part)
+            except AttributeError:
+                raise ScenarioLoadError(f"scenario {ref!r}: {where} has no {attr!r}") from None
+    else:
+        from importlib.metadata import entry_points
+
+        eps = [ep for ep in entry_points(group=ENTRY_POINT_GROUP) if ep.name == ref]
+        if not eps:
+            raise ScenarioLoadError(
+                f"unknown scenario {ref!r} (choose from {', '.join(REGISTRY)}; or FILE.py:NAME, "
+                f"MODULE:NAME, an entry point of {ENTRY_POINT_GROUP!r}: "
+                f"{', '.join(entry_point_names()) or 'none installed'})")
+        try:
+            obj = eps[0].load()
+        except BaseException as exc:       # noqa: BLE001 - a user's package: judged, not trusted
+            if not user_fault(exc):
+                raise
+            why = describe(exc)
+            raise ScenarioLoadError(f"scenario {ref!r}: cannot load its entry point: {why}") from None
+    if not isinstance(obj, Scenario):
+        raise ScenarioLoadError(f"scenario {ref!r} is not a Scenario (got {type(obj).__name__}; "
+                                "docs/scenarios.md, \"Your own scenario\")")
+    _loaded[ref] = obj
+    return obj
+
+
+def _import(ref: str, where: str) -> Any:
+    """The module of a scenario reference: a ``.py`` file (imported under a name of its own) or an
+    importable module."""
+    try:
+        if where.endswith(".py"):
+            path = Path(where).expanduser().resolve()
+            if not path.is_file():
+                raise ScenarioLoadError(f"scenario {ref!r}: no such file {where}")
+            name = "humanoid_twin_user_scenario_" + hashlib.sha256(str(path).encode()).hexdigest()[:12]
+            if name in sys.modules:
+                return sys.modules[name]
+            spec = importlib.util.spec_from_file_location(name, path)
+            assert spec is not None and spec.loader is not None
+            module = importlib.util.module_from_spec(spec)
+            sys.modules[name] = module
+            try:
+                spec.loader.exec_module(module)
+            except BaseException:
+                del sys.modules[name]
+                raise
+            return module
+        return importlib.import_module(where)
+    except ScenarioLoadError:
+        raise
+    except BaseException as exc:           # noqa: BLE001 - a user's module: any import failure
+        if not user_fault(exc):
+            raise
+        raise ScenarioLoadError(f"scenario {ref!r}: cannot import {where}: {describe(exc)}") from None
+
+
+def scenario_name(ref: str | Scenario) -> str:
+    """How a run names its scenario (the summary's ``scenario``): the name or reference as given,
+    or a Scenario object's ``name``."""
+    return ref.name if isinstance(ref, Scenario) else str(ref)
+
+
+def is_builtin(spec: Scenario) -> bool:
+    """``spec`` is one of the registered scenarios (not a user's)."""
+    return REGISTRY.get(spec.name) is spec
+
+
+def plan(scenario: str | Scenario, T: float | None = None, motion: float | None = None,
+         perna: int = 1) -> Plan:
+    """The plan of the scenario ``scenario`` (:func:`load_scenario`) with its defaults."""
+    return load_scenario(scenario).plan(T, motion, perna)
+
+
+def run_plan(spec: Scenario, opts: RunOptions) -> Plan:
+    """The plan a run of ``spec`` executes: the scenario's, with ``--control``'s type if given."""
+    the_plan = spec.plan(opts.T, opts.motion, opts.perna)
+    if opts.control is not None:
+        split = spec.double_support or the_plan.lead is not None
+        the_plan = the_plan.with_control(CONTROL_CHOICES[opts.control], split=split)
+    return the_plan
 
 
 def _arm_wall_timeout(seconds: float | None) -> Callable[[], None]:
@@ -362,319 +468,124 @@ def _after_boot_s(motion_s: float, tilt: float) -> float:
     return max(motion_s, abs(tilt) / TILT_RATE_DEG_S) + SETTLE_S
 
 
-def expected_run_s(scenario: str, duration: float | None = None, T: float | None = None,
+def expected_run_s(scenario: str | Scenario, duration: float | None = None, T: float | None = None,
                    motion: float | None = None, perna: int = 1, tilt: float = 0.0) -> float:
     """How long a run lasts at most, in simulated seconds, known before it starts: ``duration``
     when given, else the boot's bound (:data:`BOOT_TIMEOUT_S`) + the motion or the tilt + the
     settling (what the CLI sizes the outputs' disk space by)."""
     if duration is not None:
         return duration
-    spec = get_scenario(scenario)
-    motion_s = float(np.sum(spec.plan(T, motion, perna).t)) if spec.moves else 0.0
-    return BOOT_TIMEOUT_S + _after_boot_s(motion_s, tilt)
+    spec = load_scenario(scenario)
+    return BOOT_TIMEOUT_S + _after_boot_s(spec.motion_s(spec.plan(T, motion, perna)), tilt)
 
 
 def run(opts: RunOptions, on_progress: Callable[[float, float | None], None] | None = None,
-        on_twin: Callable[[Twin], None] | None = None) -> dict[str, Any]:
+        on_twin: Callable[[Any], None] | None = None) -> dict[str, Any]:
     """Run one scenario headless and return its summary (docs/scenarios.md).
 
     ``on_progress(t_s, end_s)`` is called every 0.1 s of virtual time: ``end_s`` is None during
     the boot (its length is not known in advance), then the run's end time. ``on_twin(twin)`` is
     called once the twin is built, before anything is written (``run --viewer`` attaches there)."""
-    spec = get_scenario(opts.scenario)
-    twin = Twin(seed=opts.seed, can_interface=opts.can_interface, can_channel=opts.can_channel,
-                supervisor=opts.supervisor)
-    if on_twin is not None:
-        on_twin(twin)
-    sup = twin.master.supervisor
-    injector = FaultInjector(twin, opts.faults, opts.seed)
-    if opts.laws:
-        try:
-            install_laws(twin, opts.laws)
-        except LawError as exc:       # a law that cannot be made for every board: a bad --law
-            twin.close()
-            raise ScenarioInputError(str(exc)) from None
+    spec, label = load_scenario(opts.scenario), scenario_name(opts.scenario)
+    the_plan = run_plan(spec, opts)
+    motion_s = spec.motion_s(the_plan)
     host_step = load_host_controller(opts.host_controller) if opts.host_controller is not None else None
-    host_error: str | None = None
-
-    def stopped() -> bool:
-        return sup.mode in (SAFE, ESTOP)
-
-    recorder = canlog = None
-    summary: dict[str, Any] | None = None
+    expected_s = expected_run_s(spec, opts.duration, opts.T, opts.motion, opts.perna, opts.tilt)
     wall0 = time.perf_counter()
     disarm = _arm_wall_timeout(opts.wall_timeout)
+    rig: Rig | None = None
     try:
-        the_plan = spec.plan(opts.T, opts.motion, opts.perna)
-        if opts.control is not None:
-            split = spec.double_support or the_plan.lead is not None
-            the_plan = the_plan.with_control(CONTROL_CHOICES[opts.control], split=split)
-        motion_s = float(np.sum(the_plan.t)) if spec.moves else 0.0
-        after_boot_s = _after_boot_s(motion_s, opts.tilt)
-        if opts.out is not None:
-            from humanoid_twin.recording import Recorder, compact_for
-
-            # the run's length, bounded from above before the boot (BOOT_TIMEOUT_S >= the boot)
-            expected_s = opts.duration if opts.duration is not None else BOOT_TIMEOUT_S + after_boot_s
-            recorder = Recorder(opts.out, twin, compact=compact_for(expected_s))
-        if opts.can_log is not None:
-            from humanoid_twin.recording import CanLog
-
-            canlog = CanLog(opts.can_log, twin.network, name=opts.can_log_name)
-        monitor = Monitor(twin)
-        if opts.monitor:
-            monitor.attach()
-        if recorder is not None:
-            rec_ = recorder
-            injector.listeners.append(
-                lambda t, what, spec: rec_.log_event(t, f"injected {spec.text}: {what}", "WARN"))
-        injector.install()
-        end: list[float | None] = [None]      # the run's end time, known once the boot is over
-        if on_progress is not None:
-            twin.every(100_000, lambda: on_progress(twin.now_s, end[0]))
-        try:
-            H = boot(twin)
-        except BootError as exc:
-            if not stopped() and not opts.faults:
-                raise
-            H = exc.port
-            host_error = f"boot: {exc.__cause__}"     # the supervisor stopped the boot: the run goes on
-        boot_s = twin.now_s
-        if opts.duration is not None and opts.duration < boot_s:
-            raise ScenarioInputError(
-                f"--duration {opts.duration:g} is shorter than the boot ({boot_s:.3f} simulated seconds "
-                "from power-on): give at least that")
-        duration = opts.duration
-        if duration is None:
-            duration = boot_s + after_boot_s
-        if opts.tilt:
-            twin.plant.set_tilt_profile(tilt_profile(opts.tilt, boot_s))
-        end[0] = duration
-        completed = True
-        if opts.duration is not None and spec.moves and duration < boot_s + motion_s:
-            def cut() -> None:
-                raise _DurationReachedError
-
-            twin.clock.schedule(round(duration * US_PER_S), cut)
-        host_calls = None
-        try:
+        with _open_rig(opts, expected_s, on_twin, on_progress) as rig:
+            rig.boot()                                   # time advances here: the boot
+            duration = rig.end_s = _duration(opts, rig.boot_s or 0.0, motion_s)
+            completed, host_calls = True, None
+            if duration < (rig.boot_s or 0.0) + motion_s:
+                _cut_at(rig, duration)                   # --duration ends inside the program
             try:
-                if host_error is not None:
-                    pass
-                elif not spec.moves:
-                    hold(H, the_plan)
-                elif duration > twin.now_s:
-                    exe_traj(H, the_plan.t, the_plan.pos_apply, 0.0, k=the_plan.k)
-            except drivers.CommError as exc:
-                # with the supervisor stopped, or faults injected, a failed request is part of what
-                # the run shows (summary host_error); the robot is left to the firmware meanwhile
-                if not stopped() and not opts.faults:
-                    raise ScenarioError(f"{opts.scenario}: {exc}") from exc
-                host_error = f"{opts.scenario}: {exc}"
-            if host_step is not None and host_error is None:
-                bound = _arm_host_bound(twin, duration)
-                try:
-                    host_calls = run_host_controller(H, host_step, monitor, duration, opts.host_period_ms,
-                                                     should_stop=stopped).calls
-                except _HostBoundReachedError as exc:  # the run reached its duration: completed
-                    host_calls = exc.host_context.calls  # type: ignore[attr-defined]
-                except drivers.CommError as exc:
-                    if not stopped() and not opts.faults:
-                        raise ScenarioError(f"host controller: {exc}") from exc
-                    host_error = f"host controller: {exc}"
-                except RuntimeError as exc:
-                    raise ScenarioError(str(exc)) from exc
-                finally:
-                    bound["armed"] = False
-            rest = duration - twin.now_s
-            if rest > 0:
-                host_sleep(H, rest)
-        except _DurationReachedError:
-            completed = False     # --duration fell inside the motion: cut there
-        wall = time.perf_counter() - wall0
-        summary = {
-            "scenario": opts.scenario,
-            "duration_s": round(twin.now_s, 6),
-            "fell": monitor.fell,
-            "fell_at_s": monitor.fell_at_s,
-            "trunk_tilt_max_deg": round(monitor.trunk_tilt_max_deg, 3),
-            "slip_mm": round(monitor.slip_mm, 1),
-            "outcome": outcome(monitor.fell, monitor.slip_mm),
-            "cop_margin_min_mm": _finite(monitor.cop_margin_min_mm),
-            "cop_error_rms_mm": _round(monitor.cop_error_rms_mm),
-            "wall_s": round(wall, 3),
-            "rtf": round(twin.now_s / wall, 3) if wall > 0 else None,
-            "can_frames": twin.network.frames_sent,
-            "serial_frames": twin.master.stats()["serial_frames_received"],
-            "boot_s": round(boot_s, 3),
-            "completed": completed,
-            "tilt_deg": opts.tilt,
-            "control": _control_label(the_plan),
-            "control_law": _law_label(twin, the_plan),
-            "seed": opts.seed,
-            "mode": sup.mode_name,
-            "faults": [f.as_dict() for f in sup.faults],
-            # the faults that started (one whose T0 lies beyond the run's end is listed apart)
-            "injected": [s.as_dict() for s in opts.faults if _started(s, injector)],
-        }
-        not_started = [s.as_dict() for s in opts.faults if not _started(s, injector)]
-        if not_started:
-            summary["injected_not_started"] = not_started
-        if host_error is not None:
-            summary["host_error"] = host_error
-        law_faults = [sl.servo.law_fault for sl in twin.slaves.values() if sl.servo.law_fault is not None]
-        if law_faults:
-            summary["law_faults"] = [f.as_dict() for f in law_faults]
-        if host_calls is not None:
-            summary["host_controller_calls"] = host_calls
+                if rig.host_error is None and (not spec.moves or duration > rig.now_s):
+                    _drive(spec, rig, the_plan, label)   # time advances here: the scenario's program
+                if host_step is not None and rig.host_error is None:
+                    host_calls = _host_controller(rig, host_step, duration, opts.host_period_ms)
+                rig.sleep_until(duration)                # time advances here: the robot settles
+            except _DurationReachedError:
+                completed = False                        # --duration fell inside the program: cut there
+            summary = build_summary(rig, label, the_plan, completed=completed,
+                                    wall_s=time.perf_counter() - wall0, host_calls=host_calls)
+        note_recording(summary, rig)
         return summary
     except _WallTimeoutError:
+        now = rig.now_s if rig is not None else 0.0
         raise ScenarioError(f"the run took more than {opts.wall_timeout:g} wall seconds (--wall-timeout): "
-                            f"stopped at t={twin.now_s:.3f} s simulated") from None
+                            f"stopped at t={now:.3f} s simulated") from None
     finally:
         disarm()
-        _close_all(recorder, canlog, twin)
-        if summary is not None and recorder is not None and recorder.compaction_error is not None:
-            # the compaction failed (no room for its copy, a signal): the file is kept as recorded
-            summary["recording_compacted"] = False
-            summary["recording_note"] = recorder.compaction_error
 
 
-def _started(spec: FaultSpec, injector: FaultInjector) -> bool:
-    return any(s is spec for s in injector.started)
+def _open_rig(opts: RunOptions, expected_s: float, on_twin: Callable[[Any], None] | None,
+              on_progress: Callable[[float, float | None], None] | None) -> Rig:
+    try:
+        return Rig(opts, expected_s=expected_s, on_twin=on_twin, on_progress=on_progress)
+    except LawError as exc:           # a law that cannot be made for every board: a bad --law
+        raise ScenarioInputError(str(exc)) from None
 
 
-def _close_all(*things: Any) -> None:
-    """Close every output and the twin, each even when an earlier one failed; the first error
-    is raised once all are closed (a recording that failed must not leave the CAN log open)."""
-    first: BaseException | None = None
-    for thing in things:
-        if thing is None:
-            continue
-        try:
-            thing.close()
-        except BaseException as exc:    # noqa: BLE001 - raised again below, after the others
-            first = first or exc
-    if first is not None:
-        raise first
+def _duration(opts: RunOptions, boot_s: float, motion_s: float) -> float:
+    """The run's end (virtual s): ``--duration``, or the boot + the program or the tilt + settling."""
+    if opts.duration is None:
+        return boot_s + _after_boot_s(motion_s, opts.tilt)
+    if opts.duration < boot_s:
+        raise ScenarioInputError(
+            f"--duration {opts.duration:g} is shorter than the boot ({boot_s:.3f} simulated seconds "
+            "from power-on): give at least that")
+    return opts.duration
 
 
-# a foot that moved less than this along the platform held its place: a foot rolling onto an edge
-# of its pads moves its sole origin a few mm without sliding (levantar_perna --perna 2: 7.1 mm)
-SLIP_HELD_MM = 10.0
+def _cut_at(rig: Rig, duration: float) -> None:
+    def cut() -> None:
+        raise _DurationReachedError
+
+    rig.twin.clock.schedule(round(duration * US_PER_S), cut)
 
 
-def outcome(fell: bool, slip_mm: float) -> str:
-    """The run in one word: ``fell`` (the plant's fall test, against the platform), ``slid`` (did
-    not fall, but a foot moved ``SLIP_HELD_MM`` or more along the platform), or ``held``."""
-    if fell:
-        return "fell"
-    return "slid" if slip_mm >= SLIP_HELD_MM else "held"
+def _drive(spec: Scenario, rig: Rig, the_plan: Plan, label: str) -> None:
+    """``spec.drive``: a failed request is the run's ``host_error`` when the rig tolerates it
+    (faults, a stopped supervisor; the robot is left to the firmware meanwhile), else the run's
+    end; a user scenario's own exception ends the run with one line naming it."""
+    try:
+        spec.drive(rig, the_plan)
+    except drivers.CommError as exc:
+        if not rig.tolerates():
+            raise ScenarioError(f"{label}: {exc}") from exc
+        rig.host_error = f"{label}: {exc}"
+    except BaseException as exc:
+        if is_builtin(spec) or not user_fault(exc):
+            raise                              # the twin's own (a bug, a signal, the run's end)
+        raise ScenarioError(f"scenario {label} raised {describe(exc)} at t={rig.now_s:.3f} s") from None
 
 
-# Every key a run's summary may hold, in the order the summary gives them, with what it means:
-# docs/scenarios.md's table is generated from this (scripts/gen_docs.py; a test fails when they
-# drift, another when a run's summary holds a key that is not here).
-SUMMARY_KEYS: dict[str, str] = {
-    "scenario": "the scenario run",
-    "duration_s": "simulated seconds run (boot included)",
-    "fell": "the plant's fall test at any 20 ms sample, against the platform the feet stand on: the "
-            "trunk origin less than 0.12 m above the platform's plane, or the trunk more than 45 deg "
-            "from both the vertical and the platform's normal (humanoid_twin/models/README.md section 9)",
-    "fell_at_s": "the first sample that saw the robot fallen (none: it did not fall)",
-    "trunk_tilt_max_deg": "largest angle between the trunk's z axis and the vertical",
-    "slip_mm": "the largest distance a sole moved along the platform's surface while standing on it "
-               "(since the run began, or since that foot was last set down): feet sliding down a "
-               "tilted platform, not a fall",
-    "outcome": "the run in one word: `fell`; `slid` (not fallen, but `slip_mm` reached 10 mm: a foot "
-               "rolling onto an edge of its pads moves a few mm without sliding); `held`",
-    "cop_margin_min_mm": "smallest signed distance of the ground-truth CoP (MuJoCo contact forces) inside "
-                         "the support polygon (hull of the foot pads in contact), sampled every 20 ms; "
-                         "negative when outside; **-1000** when at some sample no pad touched the "
-                         "platform (the robot in the air or lying)",
-    "cop_error_rms_mm": "RMS distance between each leg board's firmware CoP (`calcCoP`, 7-bit forces, "
-                        "integer mm) and the contact-force CoP of its foot, compared right after the "
-                        "board's own 20 ms tick, while the foot is loaded and the board calibrated",
-    "wall_s": "wall time of the run (simulation, host and recording)",
-    "rtf": "real-time factor: simulated / wall seconds",
-    "can_frames": "frames on the CAN wire",
-    "serial_frames": "RS-232 requests the Master received",
-    "boot_s": "when the boot ended (virtual seconds)",
-    "completed": "false when `--duration` cut the motion before its end, else true",
-    "tilt_deg": "the platform's tilt asked for (`--tilt`)",
-    "control": "the control type(s) the leg boards (SCU 1-2) ran, `+` between them: the scenario's "
-               "own (`stand`: `balance`) or `--control`'s",
-    "control_law": "the law that ran each of those types on the leg boards, `type=Class` (built-in), "
-                   "or `type=module:Class` (a `--law` plug-in, docs/controllers.md)",
-    "seed": "the run's seed",
-    "mode": "the Master supervisor's mode at the end (`ready`; `safe` or `estop`: exit code 3; "
-            "docs/supervisor.md)",
-    "faults": "the faults the supervisor latched: name, node, time, detail each",
-    "injected": "the `--fault` specs injected that started (docs/supervisor.md)",
-    "injected_not_started": "only when some `--fault` starts beyond the run's end: those specs",
-    "host_error": "only when a host request failed while the supervisor was stopped or faults were "
-                  "injected: that request's error (the run went on)",
-    "law_faults": "only when a control law raised or returned a bad value: which law, board, time "
-                  "and why (the board fell back to holding; docs/controllers.md)",
-    "host_controller_calls": "only with `--host-controller`: how many times its `step` was called",
-    "recording": "the `.rrd` written (the CLI)",
-    "can_log": "the CAN log written (the CLI)",
-    "recording_compacted": "only when the compaction of a long recording failed: `false`, the file "
-                           "kept as recorded (docs/recording.md)",
-    "recording_note": "only with `recording_compacted`: why the compaction failed",
-}
-
-
-def summary_keys_markdown() -> str:
-    """docs/scenarios.md's table of the summary's keys, from :data:`SUMMARY_KEYS`."""
-    lines = ["| key | meaning |", "|---|---|"]
-    lines += [f"| `{key}` | {meaning} |" for key, meaning in SUMMARY_KEYS.items()]
-    return "\n".join(lines) + "\n"
-
-
-def _leg_control_types(the_plan: Plan) -> list[ControlType]:
-    """The control types the leg boards (SCU 1, 2) run over the plan's motions, in type order."""
-    types = {int(v) for v in np.asarray(the_plan.k)[[scu - 1 for scu in FOOT_SCUS], :, :, 3].ravel()}
-    return [ControlType(t) for t in sorted(types)]
-
-
-def _control_label(the_plan: Plan) -> str:
-    """``control`` of the summary: the leg boards' control types, ``+`` between them (``stand``:
-    ``balance``, the scenario's default; ``--control`` replaces them)."""
-    return "+".join(t.label for t in _leg_control_types(the_plan))
-
-
-def _law_label(twin: Twin, the_plan: Plan) -> str:
-    """``control_law`` of the summary: which law class ran each of those types on the leg boards
-    (``balance=JacobianLaw``; a ``--law`` plug-in by its module and class)."""
-    servo = twin.slaves[FOOT_SCUS[0]].servo
-    parts = []
-    for t in _leg_control_types(the_plan):
-        law = servo.law(int(t))
-        cls = type(law)
-        name = cls.__qualname__
-        if cls.__module__ != "humanoid_twin.slave.laws":
-            name = f"{cls.__module__}:{name}"
-        parts.append(f"{t.label}={name}")
-    return " ".join(parts)
-
-
-def _round(x: float | None) -> float | None:
-    return None if x is None else round(x, 3)
-
-
-# cop_margin_min_mm when no foot pad touched the platform at some sample (airborne or fallen):
-# the CoP is then outside any support polygon, by more than any foot length.
-NO_SUPPORT_MARGIN_MM = -1000.0
-
-
-def _finite(x: float) -> float | None:
-    if math.isinf(x):
-        return None if x > 0 else NO_SUPPORT_MARGIN_MM
-    return round(max(x, NO_SUPPORT_MARGIN_MM), 3)
+def _host_controller(rig: Rig, step: Callable[..., Any], duration: float, period_ms: float) -> int | None:
+    """The ``--host-controller`` loop until ``duration``; how many times ``step`` was called (None
+    when a request failed and the run went on: the summary's ``host_error``)."""
+    bound = _arm_host_bound(rig.twin, duration)
+    try:
+        ctx = run_host_controller(rig.H, step, rig.monitor, duration, period_ms, should_stop=rig.stopped)
+        return ctx.calls
+    except _HostBoundReachedError as exc:      # the run reached its duration: completed
+        return exc.host_context.calls          # type: ignore[attr-defined]
+    except drivers.CommError as exc:
+        if not rig.tolerates():
+            raise ScenarioError(f"host controller: {exc}") from exc
+        rig.host_error = f"host controller: {exc}"
+        return None
+    except RuntimeError as exc:
+        raise ScenarioError(str(exc)) from exc
+    finally:
+        bound["armed"] = False
 
 
 __all__ = ["RunOptions", "outcome", "SLIP_HELD_MM", "SUMMARY_KEYS", "summary_keys_markdown",
-           "Monitor", "Plan", "Scenario", "REGISTRY", "scenario", "get_scenario", "boot",
-           "hold", "BootError", "ScenarioError", "ScenarioInputError", "SCENARIOS", "CONTROL_CHOICES", "plan",
-           "run", "tilt_profile", "expected_run_s"]
+           "Plan", "Scenario", "REGISTRY", "scenario", "get_scenario", "load_scenario", "scenario_name",
+           "ENTRY_POINT_GROUP", "boot", "hold", "BootError", "ScenarioError", "ScenarioInputError",
+           "ScenarioLoadError", "SCENARIOS", "CONTROL_CHOICES", "plan", "run", "run_plan", "tilt_profile",
+           "expected_run_s",
+           "Rig", "RigOptions", "BOOT_TIMEOUT_S", "TILT_RATE_DEG_S", "SETTLE_S", "BOOT_MIN_S"]

@@ -37,23 +37,19 @@ from pathlib import Path
 from typing import Any
 
 from humanoid_twin.host.planners import control_row
-from humanoid_twin.host.timebase import sleep as host_sleep
-from humanoid_twin.monitor import Monitor
 from humanoid_twin.plant.plant import TILT_MAX_DEG as PLATFORM_TILT_MAX_DEG
 from humanoid_twin.protocol.wire import ControlType
+from humanoid_twin.rig import Rig, RigOptions
 from humanoid_twin.scenarios import (
     SETTLE_S,
     STAND_KD,
     STAND_LEAD_KP,
     TILT_RATE_DEG_S,
     Plan,
-    boot,
     hold,
     plan,
-    tilt_profile,
 )
 from humanoid_twin.sweep import Point, run_sweep
-from humanoid_twin.twin import Twin
 
 FOLLOW_RATIO = 8          # the follower complies 8 times as fast as the leader balances
 TILT_RES_DEG = 1.0        # bisection resolution
@@ -92,24 +88,19 @@ def stand_plan(ctype: ControlType, g: Gain) -> Plan:
 
 
 def run_stand(ctype: ControlType, g: Gain | None, tilt: float, seed: int = 0) -> dict[str, Any]:
-    """One ``stand --tilt`` run with the given gains; returns the Monitor's verdict."""
-    twin = Twin(seed=seed)
-    try:
-        monitor = Monitor(twin)
-        monitor.attach()
-        H = boot(twin)
-        boot_s = twin.now_s
+    """One ``stand --tilt`` run with the given gains (a :class:`Rig`, as ``run`` assembles one);
+    returns the Monitor's verdict."""
+    with Rig(RigOptions(seed=seed, tilt=tilt)) as rig:
+        H = rig.boot()                        # the platform tilts from the boot's end
+        boot_s = rig.now_s
         hold(H, stand_plan(ctype, g or Gain(0, 0)))
-        twin.plant.set_tilt_profile(tilt_profile(tilt, boot_s))
-        host_sleep(H, boot_s + abs(tilt) / TILT_RATE_DEG_S + SETTLE_S - twin.now_s)
-        margin = monitor.cop_margin_min_mm
+        rig.sleep_until(boot_s + abs(tilt) / TILT_RATE_DEG_S + SETTLE_S)
+        margin = rig.monitor.cop_margin_min_mm
         return {
-            "fell": monitor.fell,
+            "fell": rig.monitor.fell,
             "cop_margin_min_mm": margin if math.isfinite(margin) else -1000.0,
-            "trunk_tilt_max_deg": monitor.trunk_tilt_max_deg,
+            "trunk_tilt_max_deg": rig.monitor.trunk_tilt_max_deg,
         }
-    finally:
-        twin.close()
 
 
 def held(r: dict[str, Any]) -> bool:

@@ -5,7 +5,7 @@
 
 Each block sits between ``<!-- generated: NAME -->`` and ``<!-- end generated: NAME -->`` in a doc:
 
-- ``summary-keys`` in docs/scenarios.md: the run summary's keys (``scenarios.SUMMARY_KEYS``).
+- ``summary-keys`` in docs/scenarios.md: the run summary's keys (``summary.SUMMARY_KEYS``).
 
 docs/fault_matrix.md is the output of ``scripts/fault_matrix.py --seed 0 --out docs/fault_matrix.md``
 (48 runs; tests/test_docs.py re-runs some of its rows and compares).
@@ -23,7 +23,7 @@ ROOT = Path(__file__).resolve().parent.parent
 
 
 def _summary_keys() -> str:
-    from humanoid_twin.scenarios import summary_keys_markdown
+    from humanoid_twin.summary import summary_keys_markdown
 
     return summary_keys_markdown()
 

@@ -1,8 +1,9 @@
-"""Shared fixtures: a twin and a booted twin (the one boot sequence, ``scenarios.boot``), and
-``humanoid-twin serve`` in a child process.
+"""Shared fixtures: a twin and a booted twin (assembled and booted by a
+:class:`~humanoid_twin.rig.Rig`, as every run is), and ``humanoid-twin serve`` in a child process.
 
 Tests that attach an observer (a monitor, a CAN log, faults, supervisor listeners) before the
-boot build their twin themselves and call :func:`humanoid_twin.scenarios.boot` on it.
+boot build their twin themselves and call :func:`humanoid_twin.rig.boot` on it, or give a
+:class:`~humanoid_twin.rig.Rig` the options that attach it.
 """
 
 from __future__ import annotations
@@ -15,7 +16,7 @@ from typing import Any
 
 import pytest
 
-from humanoid_twin.scenarios import boot
+from humanoid_twin.rig import Rig, RigOptions
 from humanoid_twin.twin import Twin
 
 
@@ -28,10 +29,12 @@ def twin() -> Iterator[Twin]:
 
 
 @pytest.fixture
-def booted_twin(twin: Twin) -> tuple[Twin, Any]:
-    """``(twin, H)``: the seed-0 twin after :func:`~humanoid_twin.scenarios.boot` (PWM on,
-    every Slave calibrated) and the host end ``H`` of its RS-232 link."""
-    return twin, boot(twin)
+def booted_twin() -> Iterator[tuple[Twin, Any]]:
+    """``(twin, H)``: the seed-0 twin of a :class:`~humanoid_twin.rig.Rig` (no instruments) after
+    :meth:`~humanoid_twin.rig.Rig.boot` (PWM on, every Slave calibrated) and the host end ``H``
+    of its RS-232 link; closed after the test."""
+    with Rig(RigOptions(seed=0, monitor=False)) as rig:
+        yield rig.twin, rig.boot()
 
 
 class ServeStarter:

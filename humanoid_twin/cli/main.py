@@ -21,6 +21,7 @@ import shutil
 import signal
 import sys
 from pathlib import Path
+from typing import Any
 
 from humanoid_twin.cli.argtypes import (
     degrees_90,
@@ -30,8 +31,18 @@ from humanoid_twin.cli.argtypes import (
     tcp_port,
     wall_seconds,
 )
+from humanoid_twin.cli.options import (
+    EXIT_USAGE,
+    add_host_controller_options,
+    add_rig_options,
+    check_rig_inputs,
+    load_scenario_arg,
+    rig_fields,
+    run_options,
+    scenario_arg,
+)
+from humanoid_twin.cli.options import usage_error as _usage_error
 
-EXIT_USAGE = 2
 EXIT_SUPERVISOR = 3     # the run ended with the supervisor in safe or estop (docs/supervisor.md)
 
 
@@ -42,13 +53,6 @@ class _Parser(argparse.ArgumentParser):
         sys.stderr.write(f"humanoid-twin: error: {message}\n")
         raise SystemExit(EXIT_USAGE)
 
-
-def _usage_error(message: str) -> SystemExit:
-    sys.stderr.write(f"humanoid-twin: error: {message}\n")
-    return SystemExit(EXIT_USAGE)
-
-
-CAN_INTERFACES = ("humanoid_twin", "virtual", "socketcan")
 
 EXAMPLES = """\
 examples:
@@ -96,16 +100,8 @@ def _scenario_lines() -> str:
     return "\n".join(lines)
 
 
-def _add_can_options(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--can-interface", choices=CAN_INTERFACES, default="humanoid_twin",
-                   help="python-can interface of the CAN wire (default humanoid_twin: the project's own, "
-                   "frames in virtual time; socketcan needs --can-channel, e.g. vcan0, for candump)")
-    p.add_argument("--can-channel", help="python-can channel (default: a fresh one; socketcan: vcan0)")
-
-
 def build_parser() -> argparse.ArgumentParser:
     """The CLI's argument parser (exposed for the docs and the tests)."""
-    from humanoid_twin.faults import add_fault_options
     from humanoid_twin.scenarios import CONTROL_CHOICES, DEFAULT_MOTION_DEG, DEFAULT_T_S, SCENARIOS
 
     raw = argparse.RawDescriptionHelpFormatter
@@ -126,8 +122,9 @@ def build_parser() -> argparse.ArgumentParser:
         "stdout.\n\n" + _scenario_lines(),
         epilog=EXAMPLES, formatter_class=raw,
     )
-    run.add_argument("scenario", choices=SCENARIOS, metavar="SCENARIO",
-                     help=f"one of: {', '.join(SCENARIOS)} (see above)")
+    run.add_argument("scenario", type=scenario_arg, metavar="SCENARIO",
+                     help=f"one of: {', '.join(SCENARIOS)} (see above); or your own: FILE.py:NAME, "
+                     "MODULE:NAME, or an entry point of group humanoid_twin.scenarios (docs/scenarios.md)")
     run.add_argument("--duration", type=positive_seconds, metavar="S", help="simulated seconds (default: "
                      "boot ~2.7 s + the motion + 2 s of settling)")
     run.add_argument("--T", type=positive_seconds, metavar="S", help="the planner's movement period in "
@@ -138,16 +135,11 @@ def build_parser() -> argparse.ArgumentParser:
                      f"(what it bends: see the scenarios above). Default: {per}")
     run.add_argument("--perna", type=int, default=1, choices=(1, 2), help="levantar_perna: the leg to "
                      "lift, 1 the right (default), 2 the left (seed 000 table 22)")
-    run.add_argument("--out", type=Path, help="rerun recording to write (default: SCENARIO.rrd)")
+    add_rig_options(run, out_help="rerun recording to write (default: SCENARIO.rrd; a scenario of "
+                    "yours: its name.rrd)")
     run.add_argument("--no-record", action="store_true", help="do not write a recording")
-    run.add_argument("--can-log", type=Path, help="CAN log to write; format by suffix (.asc .blf .log "
-                     ".csv .trc ...), python-can writers")
     run.add_argument("--control", choices=tuple(CONTROL_CHOICES), help="override the control type the "
                      "planner sets")
-    run.add_argument("--tilt", type=degrees_90, default=0.0, help="tilt the floor platform slowly about "
-                     "the lateral axis to DEG (toes up positive)")
-    run.add_argument("--seed", type=int, default=0, help="random seed (sensor noise, servo offsets, "
-                     "board phases)")
     run.add_argument("--json", action="store_true", help="print the summary as one JSON object, alone "
                      "on stdout (instead of the table)")
     run.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
@@ -156,17 +148,14 @@ def build_parser() -> argparse.ArgumentParser:
                      "nothing replaced); default: no limit")
     run.add_argument("--viewer", action="store_true", help="watch the run live in MuJoCo's own viewer, "
                      "paced to real time (needs a display)")
-    _add_can_options(run)
-    add_fault_options(run)
-    from humanoid_twin.controllers import add_controller_options
-
-    add_controller_options(run)     # --law, --host-controller, --host-period-ms (docs/controllers.md)
+    add_host_controller_options(run)     # --host-controller, --host-period-ms (docs/controllers.md)
 
     serve = sub.add_parser(
         "serve",
         help="serve the twin in real time on a pty or TCP port for any serial client",
         description="Run the twin in real time. The first line on stdout is the port to open "
-        "(a pty path, or socket://HOST:PORT with --tcp). Runs until killed.",
+        "(a pty path, or socket://HOST:PORT with --tcp). Runs until killed (Ctrl-C, SIGTERM); "
+        "--out and --can-log are complete files then (docs/serve.md).",
     )
     where = serve.add_mutually_exclusive_group()
     where.add_argument("--pty", action="store_true", help="serve on a pseudo-terminal (default)")
@@ -181,14 +170,11 @@ def build_parser() -> argparse.ArgumentParser:
                        "silent client cannot hold the port (default 600; 0: never)")
     serve.add_argument("--speed", type=speed_factor, default=1.0, metavar="X", help="run X times faster "
                        "than real time (0.5: half as fast; default 1, as the robot); 0.01..100")
-    serve.add_argument("--seed", type=int, default=0, help="random seed")
-    serve.add_argument("--tilt", type=degrees_90, default=0.0, help="tilt the platform slowly to DEG")
-    _add_can_options(serve)
-    add_fault_options(serve)
+    add_rig_options(serve, out_help="rerun recording of the whole serve run (default: none)")
 
-    from humanoid_twin.sweep.cli import add_sweep_parser
+    from humanoid_twin.cli.sweep import add_sweep_parser
 
-    add_sweep_parser(sub, SCENARIOS)   # its other options are run's (main passes them through)
+    add_sweep_parser(sub)   # its other options are run's (main passes them through)
 
     view = sub.add_parser("view", help="open a recording in the rerun viewer",
                           description="Open FILE.rrd in the rerun viewer (same as `rerun FILE.rrd`).")
@@ -201,7 +187,6 @@ def build_parser() -> argparse.ArgumentParser:
 
 MAX_DURATION_S = 86_400.0   # one simulated day: --duration beyond this is refused
 MIN_FREE_BYTES = 8 * 2**20  # a run's outputs need at least this much free disk besides their own size
-SEED_MAX = 2**32 - 1        # seeds are 0..2**32-1 (numpy's range)
 EXIT_INTERRUPTED = 130      # SIGINT (Ctrl-C)
 EXIT_TERMINATED = 143       # SIGTERM (timeout, CI runners, docker stop)
 NAME_MAX = 255              # bytes in a file name (Linux, macOS)
@@ -271,7 +256,8 @@ class _Outputs:
         self.temp: dict[str, Path] = {}
 
     def check_space(self, wanted: dict[str, tuple[Path, str]], expected_s: float) -> None:
-        """Every disk has room for what the run writes on it, plus :data:`MIN_FREE_BYTES`."""
+        """Every disk has room for what the run writes on it, plus :data:`MIN_FREE_BYTES` (an
+        open-ended run, ``serve``: ``expected_s`` 0, that margin only)."""
         need: dict[int, list] = {}
         for key, (path, what) in wanted.items():
             _check_writable(path, what)
@@ -327,65 +313,38 @@ class _Outputs:
         return text
 
 
-def _check_seed_and_tilt(args: argparse.Namespace) -> None:
-    """``--seed``, ``--tilt`` and how the ``--fault`` s compose, the options ``run`` and ``serve``
-    share (one line, exit 2)."""
-    from humanoid_twin.fault_compose import check_composition
-    from humanoid_twin.faults import FaultSpecError
-    from humanoid_twin.plant.plant import TILT_MAX_DEG
-
-    try:
-        check_composition(getattr(args, "fault", None) or ())
-    except FaultSpecError as exc:
-        raise _usage_error(str(exc)) from None
-
-    if not 0 <= args.seed <= SEED_MAX:
-        raise _usage_error(f"--seed {args.seed}: must be 0..{SEED_MAX}")
-    if abs(args.tilt) > TILT_MAX_DEG:
-        raise _usage_error(f"--tilt {args.tilt:g}: the platform tilts within +-{TILT_MAX_DEG:g} degrees")
-
-
-def _check_run_inputs(args: argparse.Namespace) -> None:
-    """Every value of ``run`` checked before anything runs or is written (one line, exit 2)."""
-    from humanoid_twin.scenarios import plan
+def check_run_inputs(args: argparse.Namespace, load: bool = True) -> dict[str, Any]:
+    """Every value of ``run`` checked before anything runs or is written (one line, exit 2): its
+    own, the scenario (loaded: a user's is imported here) and its planner's limits, then what it
+    shares with ``serve`` (:func:`~humanoid_twin.cli.options.check_rig_inputs`). Returns the
+    loaded controllers; ``load`` False: the ``--law`` s and ``--host-controller`` are not imported
+    again (a sweep's later grid points)."""
+    from humanoid_twin.containment import describe, user_fault
+    from humanoid_twin.scenarios import BOOT_MIN_S, is_builtin
 
     if args.no_record and args.out is not None:
         raise _usage_error(f"--no-record and --out {args.out} contradict each other: drop one")
     if args.duration is not None and args.duration > MAX_DURATION_S:
         raise _usage_error(f"--duration {args.duration:g}: at most {MAX_DURATION_S:g} simulated seconds")
-    from humanoid_twin.scenarios import BOOT_MIN_S
-
     if args.duration is not None and args.duration < BOOT_MIN_S:
         raise _usage_error(f"--duration {args.duration:g} is shorter than the boot (the Slaves calibrate for "
                            f"{BOOT_MIN_S:g} s; the boot takes ~2.65 simulated seconds): give at least that")
-    _check_seed_and_tilt(args)
+    spec = load_scenario_arg(args.scenario)
     try:   # the planners' own limits (T fits one byte of 20 ms ticks, each joint's range ...)
-        plan(args.scenario, T=args.T, motion=args.motion, perna=args.perna)
+        spec.plan(args.T, args.motion, args.perna)
     except ValueError as exc:
         raise _usage_error(f"{args.scenario}: {exc}") from None
-    _check_can_interface(args)
-
-
-def _check_can_interface(args: argparse.Namespace) -> None:
-    import socket
-
-    if args.can_interface != "socketcan":
-        return
-    if not args.can_channel:
-        raise _usage_error("--can-interface socketcan needs --can-channel (e.g. vcan0)")
-    if not hasattr(socket, "AF_CAN"):
-        raise _usage_error("--can-interface socketcan: this system has no SocketCAN (AF_CAN)")
-    try:
-        with socket.socket(socket.AF_CAN, socket.SOCK_RAW, socket.CAN_RAW) as s:
-            s.bind((args.can_channel,))
-    except OSError as exc:
-        raise _usage_error(f"--can-interface socketcan --can-channel {args.can_channel}: cannot open it: "
-                           f"{exc.strerror or exc} (create it: ip link add dev vcan0 type vcan)") from None
+    except BaseException as exc:
+        if is_builtin(spec) or not user_fault(exc):
+            raise
+        sys.stderr.write(f"humanoid-twin: scenario {args.scenario} raised {describe(exc)} in its plan\n")
+        raise SystemExit(1) from None
+    return check_rig_inputs(args, load=load)
 
 
 def cmd_run(args: argparse.Namespace) -> int:
     """``humanoid-twin run``."""
-    _check_run_inputs(args)
+    controllers = check_run_inputs(args)
     if args.viewer:
         from humanoid_twin.cli.live_viewer import LiveViewerError, check_display
 
@@ -393,26 +352,11 @@ def cmd_run(args: argparse.Namespace) -> int:
             check_display()
         except LiveViewerError as exc:
             raise _usage_error(str(exc)) from None
-    out = None if args.no_record else (args.out or Path(f"{args.scenario}.rrd"))
+    from humanoid_twin.scenarios import expected_run_s, load_scenario
+
+    out = None if args.no_record else (args.out or Path(f"{load_scenario(args.scenario).name}.rrd"))
     if out is not None and out.suffix != ".rrd":
         raise _usage_error(f"--out {out}: a rerun recording must end in .rrd")
-    if args.can_log is not None:
-        from humanoid_twin.recording.can_log import CanLogError, check_log_path
-
-        try:
-            check_log_path(args.can_log)
-        except CanLogError as exc:
-            raise _usage_error(f"--can-log: {exc}") from None
-        except OSError:
-            pass                          # the writability check below says it in one line
-    # a --law / --host-controller is imported and checked before any file is created
-    from humanoid_twin.controllers import ControllerError, controller_run_options
-    from humanoid_twin.scenarios import expected_run_s
-
-    try:
-        controllers = controller_run_options(args)
-    except ControllerError as exc:
-        raise _usage_error(str(exc)) from None
     wanted = {k: (p, w) for k, p, w in (("out", out, "--out"), ("can_log", args.can_log, "--can-log"))
               if p is not None}
     outputs = _Outputs()
@@ -424,27 +368,16 @@ def cmd_run(args: argparse.Namespace) -> int:
     try:
         out_tmp = outputs.add("out", out, "--out") if out is not None else None
         can_tmp = outputs.add("can_log", args.can_log, "--can-log") if args.can_log is not None else None
-        return _run(args, controllers, outputs, out_tmp, can_tmp)
+        return _run(args, run_options(args, controllers, out_tmp, can_tmp), outputs)
     finally:
         outputs.discard()       # whatever was not committed
 
 
-def _run(args: argparse.Namespace, controllers: dict, outputs: _Outputs, out_tmp: Path | None,
-         can_tmp: Path | None) -> int:
+def _run(args: argparse.Namespace, opts: Any, outputs: _Outputs) -> int:
     from humanoid_twin import signals
-    from humanoid_twin.faults import supervisor_config
     from humanoid_twin.recording.readback import RrdReadError
-    from humanoid_twin.scenarios import RunOptions, ScenarioError, ScenarioInputError, run
+    from humanoid_twin.scenarios import ScenarioError, ScenarioInputError, run
 
-    opts = RunOptions(
-        **controllers,
-        scenario=args.scenario, duration=args.duration, T=args.T, motion=args.motion, perna=args.perna,
-        out=out_tmp, can_log=can_tmp, can_log_name=None if args.can_log is None else args.can_log.name,
-        control=args.control, tilt=args.tilt, seed=args.seed,
-        progress=not args.no_progress, can_interface=args.can_interface, can_channel=args.can_channel,
-        faults=tuple(args.fault), supervisor=supervisor_config(args),
-        wall_timeout=getattr(args, "wall_timeout", None),
-    )
     bar = None
     if opts.progress:
         from humanoid_twin.cli.progress import RunProgress
@@ -542,11 +475,12 @@ def _print_summary(summary: dict, as_json: bool) -> None:
 
 
 def cmd_serve(args: argparse.Namespace) -> int:
-    """``humanoid-twin serve``: real-time pacing, the port on the first stdout line."""
-    from humanoid_twin.serve import ServeError, serve
+    """``humanoid-twin serve``: real-time pacing, the port on the first stdout line; ``--out`` and
+    ``--can-log`` written under temporary names and renamed when serve ends (Ctrl-C, SIGTERM)."""
+    from humanoid_twin.recording.readback import RrdReadError
+    from humanoid_twin.serve import ServeError, ServeOptions, serve
 
-    _check_seed_and_tilt(args)
-    _check_can_interface(args)
+    controllers = check_rig_inputs(args)        # the same checks as run's (cli/options.py)
     if args.tcp is not None:
         _check_bind(args.host, args.tcp)
         _check_remote(args.host, args.allow_remote)
@@ -557,16 +491,30 @@ def cmd_serve(args: argparse.Namespace) -> int:
 
     signal.signal(signal.SIGTERM, _stop)
     signal.signal(signal.SIGINT, _stop)
-    from humanoid_twin.faults import supervisor_config
-
+    wanted = {k: (p, w) for k, p, w in (("out", args.out, "--out"), ("can_log", args.can_log, "--can-log"))
+              if p is not None}
+    outputs = _Outputs()
+    outputs.check_space(wanted, 0.0)            # open-ended: the free-space margin only
     try:
-        code = serve(tcp_port=args.tcp, host=args.host, seed=args.seed, tilt=args.tilt,
-                     can_interface=args.can_interface, can_channel=args.can_channel,
-                     faults=tuple(args.fault), supervisor=supervisor_config(args),
-                     should_stop=lambda: stop["signal"] is not None,
-                     idle_timeout_s=args.idle_timeout or None, speed=args.speed)
-    except ServeError as exc:
-        raise _usage_error(str(exc)) from None
+        out_tmp = outputs.add("out", args.out, "--out") if args.out is not None else None
+        can_tmp = outputs.add("can_log", args.can_log, "--can-log") if args.can_log is not None else None
+        opts = ServeOptions(**rig_fields(args, controllers), out=out_tmp, can_log=can_tmp,
+                            can_log_name=None if args.can_log is None else args.can_log.name,
+                            tcp_port=args.tcp, host=args.host, idle_timeout_s=args.idle_timeout or None,
+                            speed=args.speed)
+        try:
+            code = serve(opts, should_stop=lambda: stop["signal"] is not None)
+        except ServeError as exc:
+            raise _usage_error(str(exc)) from None
+        except (OSError, RrdReadError) as exc:
+            sys.stderr.write(f"humanoid-twin: error: cannot write the outputs: "
+                             f"{_one_line(outputs.final_names(str(exc)))}; no file replaced\n")
+            return 1
+        outputs.commit()
+        for path in outputs.final.values():
+            sys.stderr.write(f"humanoid-twin serve: wrote {path}\n")
+    finally:
+        outputs.discard()
     # ended by a signal: 130 (SIGINT) or 143 (SIGTERM), as run (issue 24; it was 0)
     return 128 + stop["signal"] if stop["signal"] is not None else code
 
@@ -627,7 +575,7 @@ def cmd_view(args: argparse.Namespace) -> int:
 
 def cmd_sweep(args: argparse.Namespace) -> int:
     """``humanoid-twin sweep``: a grid of runs into one table (humanoid_twin/sweep/, docs/sweeps.md)."""
-    from humanoid_twin.sweep.cli import sweep_command
+    from humanoid_twin.cli.sweep import sweep_command
 
     return sweep_command(args, build_parser())
 

@@ -46,6 +46,12 @@ class Master:
         """``main`` (module Master): ``initPic``, then the dummy task (nothing: interrupts only)."""
         self.pic.initPic()
 
+    def reset_receiver(self) -> None:
+        """Reset the Master's serial receiver (``usartResetRxBuff``, seed 000 table 2): a frame
+        half received is dropped, stream mode left. ``serve`` calls it when a client arrives, so
+        that no byte of the previous client completes the next one's first frame."""
+        self.usart.usartResetRxBuff()
+
     @property
     def controller(self) -> CanController:
         """The Master's CAN controller (TEC/REC/state)."""

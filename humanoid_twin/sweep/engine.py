@@ -106,7 +106,8 @@ class RunCli:
         if self.recordings is None:
             argv.append("--no-record")
         else:
-            argv.append(f"--out={Path(self.recordings) / (self.scenario + '_' + point.label() + '.rrd')}")
+            stem = self.scenario.rpartition(":")[2]     # a user's FILE.py:NAME or MODULE:NAME: NAME
+            argv.append(f"--out={Path(self.recordings) / (stem + '_' + point.label() + '.rrd')}")
         return argv
 
     def __call__(self, point: Point) -> dict[str, Any]:

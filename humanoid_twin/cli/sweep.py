@@ -9,6 +9,7 @@ from pathlib import Path
 from typing import Any
 
 from humanoid_twin.cli.argtypes import count, wall_seconds
+from humanoid_twin.cli.options import scenario_arg
 from humanoid_twin.sweep.engine import (
     BACKENDS,
     DEFAULT_TIMEOUT_S,
@@ -25,7 +26,7 @@ from humanoid_twin.sweep.table import SweepError, read_table, table_format
 NOT_PARAMS = {"command", "scenario", "out", "no_record", "can_log", "json", "no_progress"}
 
 
-def add_sweep_parser(sub: Any, scenarios: tuple[str, ...]) -> argparse.ArgumentParser:
+def add_sweep_parser(sub: Any) -> argparse.ArgumentParser:
     """The ``sweep`` subcommand (``sub``: the CLI's subparsers). Options it does not know are
     ``run``'s, given to every run."""
     p = sub.add_parser(
@@ -37,7 +38,8 @@ def add_sweep_parser(sub: Any, scenarios: tuple[str, ...]) -> argparse.ArgumentP
         "`run --json`, error). Any other `run` option (e.g. --duration 3 --tilt 5) applies to "
         "every run. See docs/sweeps.md.",
     )
-    p.add_argument("scenario", choices=scenarios, help="the motion to run")
+    p.add_argument("scenario", type=scenario_arg, metavar="SCENARIO",
+                   help="the scenario to run: a built-in one, FILE.py:NAME or MODULE:NAME (as run's)")
     p.add_argument("--param", action="append", default=[], metavar="NAME=V1,V2,...",
                    help="a run option (its flag without dashes: tilt, T, motion, perna, control, fault, "
                    "seed ...) and its values; repeat for a grid")
@@ -102,6 +104,9 @@ def plan_sweep(args: argparse.Namespace, parser: argparse.ArgumentParser
     returns the grid, the seeds and the task. Raises :class:`SweepError` (or exits 2 through the
     parser) before anything is written."""
     run_args = list(args.run_args)
+    where, colon, name = args.scenario.rpartition(":")
+    if colon and where.endswith(".py"):       # a user's file: found by every run, whatever its cwd
+        args.scenario = f"{Path(where).expanduser().resolve()}:{name}"
     base = vars(parser.parse_args(["run", args.scenario, "--no-record"]))
     given = vars(parser.parse_args(["run", args.scenario, "--no-record", *run_args]))
     if given["can_log"] is not None:
@@ -179,8 +184,7 @@ def _check_every_point(args: argparse.Namespace, parser: argparse.ArgumentParser
     run starts: one line, exit 2 (issue 24). A seed is checked once, on the first point."""
     import itertools
 
-    from humanoid_twin.cli.main import _check_run_inputs
-    from humanoid_twin.controllers import ControllerError, controller_run_options
+    from humanoid_twin.cli.main import check_run_inputs
 
     names = list(params)
     loaded: set[tuple] = set()
@@ -189,14 +193,9 @@ def _check_every_point(args: argparse.Namespace, parser: argparse.ArgumentParser
             argv = ["run", args.scenario, "--no-record", *run_args,
                     *(f"--{n}={v}" for n, v in zip(names, values, strict=True)), f"--seed={seed}"]
             ns = parser.parse_args(argv)
-            _check_run_inputs(ns)
             key = (tuple(ns.law), ns.host_controller)
-            if key not in loaded:
-                loaded.add(key)
-                try:
-                    controller_run_options(ns)
-                except ControllerError as exc:
-                    raise SweepError(str(exc)) from None
+            check_run_inputs(ns, load=key not in loaded)    # a --law / --host-controller loaded once
+            loaded.add(key)
 
 
 def _check_is_sweep_table(path: Path, rows: list[dict[str, Any]]) -> None:

@@ -1,0 +1,197 @@
+"""A run's summary (``humanoid-twin run``'s table, ``--json``'s object, a sweep's row): built here
+from the :class:`~humanoid_twin.rig.Rig` once the run is over. :data:`SUMMARY_KEYS` lists every
+key, in order, with its meaning; docs/scenarios.md's table is generated from it."""
+
+from __future__ import annotations
+
+import math
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from humanoid_twin.faults import FaultSpec
+from humanoid_twin.protocol.wire import ControlType
+from humanoid_twin.twin import Twin
+
+if TYPE_CHECKING:
+    from humanoid_twin.rig import Rig
+    from humanoid_twin.scenarios import Plan
+
+__all__ = ["SUMMARY_KEYS", "summary_keys_markdown", "build_summary", "outcome", "SLIP_HELD_MM",
+           "NO_SUPPORT_MARGIN_MM", "FOOT_SCUS"]
+
+FOOT_SCUS = (1, 2)      # the leg boards (foot lateral, foot front, knee): the summary's ``control``
+
+
+def build_summary(rig: Rig, scenario: str, plan: Plan, *, completed: bool, wall_s: float,
+                  host_calls: int | None = None) -> dict[str, Any]:
+    """The summary of the run ``scenario`` (its name as the user gave it) on ``rig``, whose plan
+    was ``plan``: every key of :data:`SUMMARY_KEYS` that applies, in that order."""
+    twin, monitor, opts = rig.twin, rig.monitor, rig.opts
+    sup = twin.master.supervisor
+    started = [s for s in opts.faults if _started(s, rig)]
+    summary: dict[str, Any] = {
+        "scenario": scenario,
+        "duration_s": round(twin.now_s, 6),
+        "fell": monitor.fell,
+        "fell_at_s": monitor.fell_at_s,
+        "trunk_tilt_max_deg": round(monitor.trunk_tilt_max_deg, 3),
+        "slip_mm": round(monitor.slip_mm, 1),
+        "outcome": outcome(monitor.fell, monitor.slip_mm),
+        "cop_margin_min_mm": _finite(monitor.cop_margin_min_mm),
+        "cop_error_rms_mm": _round(monitor.cop_error_rms_mm),
+        "wall_s": round(wall_s, 3),
+        "rtf": round(twin.now_s / wall_s, 3) if wall_s > 0 else None,
+        "can_frames": twin.network.frames_sent,
+        "serial_frames": twin.master.stats()["serial_frames_received"],
+        "boot_s": round(rig.boot_s or 0.0, 3),
+        "completed": completed,
+        "tilt_deg": opts.tilt,
+        "control": _control_label(plan),
+        "control_law": _law_label(twin, plan),
+        "seed": opts.seed,
+        "mode": sup.mode_name,
+        "faults": [f.as_dict() for f in sup.faults],
+        # the faults that started (one whose T0 lies beyond the run's end is listed apart)
+        "injected": [s.as_dict() for s in started],
+    }
+    not_started = [s.as_dict() for s in opts.faults if not _started(s, rig)]
+    if not_started:
+        summary["injected_not_started"] = not_started
+    if rig.host_error is not None:
+        summary["host_error"] = rig.host_error
+    law_faults = [sl.servo.law_fault for sl in twin.slaves.values() if sl.servo.law_fault is not None]
+    if law_faults:
+        summary["law_faults"] = [f.as_dict() for f in law_faults]
+    if host_calls is not None:
+        summary["host_controller_calls"] = host_calls
+    return summary
+
+
+def note_recording(summary: dict[str, Any], rig: Rig) -> None:
+    """After the rig closed: when the compaction of its recording failed (no room for its copy, a
+    signal), the file is kept as recorded and the summary says why."""
+    if rig.recorder is not None and rig.recorder.compaction_error is not None:
+        summary["recording_compacted"] = False
+        summary["recording_note"] = rig.recorder.compaction_error
+
+
+def _started(spec: FaultSpec, rig: Rig) -> bool:
+    return any(s is spec for s in rig.injector.started)
+
+
+# a foot that moved less than this along the platform held its place: a foot rolling onto an edge
+# of its pads moves its sole origin a few mm without sliding (levantar_perna --perna 2: 7.1 mm)
+SLIP_HELD_MM = 10.0
+
+
+def outcome(fell: bool, slip_mm: float) -> str:
+    """The run in one word: ``fell`` (the plant's fall test, against the platform), ``slid`` (did
+    not fall, but a foot moved ``SLIP_HELD_MM`` or more along the platform), or ``held``."""
+    if fell:
+        return "fell"
+    return "slid" if slip_mm >= SLIP_HELD_MM else "held"
+
+
+# Every key a run's summary may hold, in the order the summary gives them, with what it means:
+# docs/scenarios.md's table is generated from this (scripts/gen_docs.py; a test fails when they
+# drift, another when a run's summary holds a key that is not here).
+SUMMARY_KEYS: dict[str, str] = {
+    "scenario": "the scenario run",
+    "duration_s": "simulated seconds run (boot included)",
+    "fell": "the plant's fall test at any 20 ms sample, against the platform the feet stand on: the "
+            "trunk origin less than 0.12 m above the platform's plane, or the trunk more than 45 deg "
+            "from both the vertical and the platform's normal (humanoid_twin/models/README.md section 9)",
+    "fell_at_s": "the first sample that saw the robot fallen (none: it did not fall)",
+    "trunk_tilt_max_deg": "largest angle between the trunk's z axis and the vertical",
+    "slip_mm": "the largest distance a sole moved along the platform's surface while standing on it "
+               "(since the run began, or since that foot was last set down): feet sliding down a "
+               "tilted platform, not a fall",
+    "outcome": "the run in one word: `fell`; `slid` (not fallen, but `slip_mm` reached 10 mm: a foot "
+               "rolling onto an edge of its pads moves a few mm without sliding); `held`",
+    "cop_margin_min_mm": "smallest signed distance of the ground-truth CoP (MuJoCo contact forces) inside "
+                         "the support polygon (hull of the foot pads in contact), sampled every 20 ms; "
+                         "negative when outside; **-1000** when at some sample no pad touched the "
+                         "platform (the robot in the air or lying)",
+    "cop_error_rms_mm": "RMS distance between each leg board's firmware CoP (`calcCoP`, 7-bit forces, "
+                        "integer mm) and the contact-force CoP of its foot, compared right after the "
+                        "board's own 20 ms tick, while the foot is loaded and the board calibrated",
+    "wall_s": "wall time of the run (simulation, host and recording)",
+    "rtf": "real-time factor: simulated / wall seconds",
+    "can_frames": "frames on the CAN wire",
+    "serial_frames": "RS-232 requests the Master received",
+    "boot_s": "when the boot ended (virtual seconds)",
+    "completed": "false when `--duration` cut the motion before its end, else true",
+    "tilt_deg": "the platform's tilt asked for (`--tilt`)",
+    "control": "the control type(s) the leg boards (SCU 1-2) ran, `+` between them: the scenario's "
+               "own (`stand`: `balance`) or `--control`'s",
+    "control_law": "the law that ran each of those types on the leg boards, `type=Class` (built-in), "
+                   "or `type=module:Class` (a `--law` plug-in, docs/controllers.md)",
+    "seed": "the run's seed",
+    "mode": "the Master supervisor's mode at the end (`ready`; `safe` or `estop`: exit code 3; "
+            "docs/supervisor.md)",
+    "faults": "the faults the supervisor latched: name, node, time, detail each",
+    "injected": "the `--fault` specs injected that started (docs/supervisor.md)",
+    "injected_not_started": "only when some `--fault` starts beyond the run's end: those specs",
+    "host_error": "only when a host request failed while the supervisor was stopped or faults were "
+                  "injected: that request's error (the run went on)",
+    "law_faults": "only when a control law raised or returned a bad value: which law, board, time "
+                  "and why (the board fell back to holding; docs/controllers.md)",
+    "host_controller_calls": "only with `--host-controller`: how many times its `step` was called",
+    "recording": "the `.rrd` written (the CLI)",
+    "can_log": "the CAN log written (the CLI)",
+    "recording_compacted": "only when the compaction of a long recording failed: `false`, the file "
+                           "kept as recorded (docs/recording.md)",
+    "recording_note": "only with `recording_compacted`: why the compaction failed",
+}
+
+
+def summary_keys_markdown() -> str:
+    """docs/scenarios.md's table of the summary's keys, from :data:`SUMMARY_KEYS`."""
+    lines = ["| key | meaning |", "|---|---|"]
+    lines += [f"| `{key}` | {meaning} |" for key, meaning in SUMMARY_KEYS.items()]
+    return "\n".join(lines) + "\n"
+
+
+def _leg_control_types(the_plan: Plan) -> list[ControlType]:
+    """The control types the leg boards (SCU 1, 2) run over the plan's motions, in type order."""
+    types = {int(v) for v in np.asarray(the_plan.k)[[scu - 1 for scu in FOOT_SCUS], :, :, 3].ravel()}
+    return [ControlType(t) for t in sorted(types)]
+
+
+def _control_label(the_plan: Plan) -> str:
+    """``control`` of the summary: the leg boards' control types, ``+`` between them (``stand``:
+    ``balance``, the scenario's default; ``--control`` replaces them)."""
+    return "+".join(t.label for t in _leg_control_types(the_plan))
+
+
+def _law_label(twin: Twin, the_plan: Plan) -> str:
+    """``control_law`` of the summary: which law class ran each of those types on the leg boards
+    (``balance=JacobianLaw``; a ``--law`` plug-in by its module and class)."""
+    servo = twin.slaves[FOOT_SCUS[0]].servo
+    parts = []
+    for t in _leg_control_types(the_plan):
+        law = servo.law(int(t))
+        cls = type(law)
+        name = cls.__qualname__
+        if cls.__module__ != "humanoid_twin.slave.laws":
+            name = f"{cls.__module__}:{name}"
+        parts.append(f"{t.label}={name}")
+    return " ".join(parts)
+
+
+def _round(x: float | None) -> float | None:
+    return None if x is None else round(x, 3)
+
+
+# cop_margin_min_mm when no foot pad touched the platform at some sample (airborne or fallen):
+# the CoP is then outside any support polygon, by more than any foot length.
+NO_SUPPORT_MARGIN_MM = -1000.0
+
+
+def _finite(x: float) -> float | None:
+    if math.isinf(x):
+        return None if x > 0 else NO_SUPPORT_MARGIN_MM
+    return round(max(x, NO_SUPPORT_MARGIN_MM), 3)
+
+
