@@ -249,7 +249,7 @@ def test_a_failed_run_keeps_its_whole_error(monkeypatch):
 
 
 def test_sweep_exit_codes_count_the_failed_runs():
-    from humanoid_twin.sweep.cli import exit_code
+    from humanoid_twin.cli.sweep import exit_code
 
     assert [exit_code(n) for n in (0, 1, 2, 99, 500)] == [0, 101, 102, 199, 199]
 

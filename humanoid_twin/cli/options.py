@@ -18,7 +18,6 @@ from pathlib import Path
 from typing import Any
 
 from humanoid_twin.cli.argtypes import checked, degrees_90
-from humanoid_twin.controllers import DEFAULT_HOST_PERIOD_MS
 
 EXIT_USAGE = 2
 CAN_INTERFACES = ("humanoid_twin", "virtual", "socketcan")
@@ -78,6 +77,8 @@ _period_ms = checked(float, "a number of milliseconds", lambda v: 1 <= v <= 10_0
 
 def add_host_controller_options(p: argparse.ArgumentParser) -> None:
     """``--host-controller`` and ``--host-period-ms`` (``run``; docs/controllers.md)."""
+    from humanoid_twin.controllers import DEFAULT_HOST_PERIOD_MS
+
     p.add_argument("--host-controller", metavar="MODULE:FUNCTION",
                    help="call FUNCTION(ctx) every --host-period-ms of simulated time with the host toolbox "
                    "bound to the twin's port and the ground-truth monitor")
