@@ -5,8 +5,12 @@ The command line is a contract (scripts and CI depend on it; docs/scenarios.md):
     humanoid-twin run SCENARIO [--duration S] [--T S] [--motion DEG] [--perna 1|2] [--out FILE.rrd]
                                [--can-log FILE] [--control none|locomotion|reaction|balance]
                                [--tilt DEG] [--seed N] [--json]
-    humanoid-twin serve [--pty | --tcp PORT] [--host 127.0.0.1]
+    humanoid-twin serve [--pty | --tcp PORT] [--host 127.0.0.1] [--out FILE.rrd] [--can-log FILE]
+                        [--law ...] [--fault ...] [--tilt DEG] [--seed N]
     humanoid-twin view FILE.rrd
+
+SCENARIO: a built-in one, or the user's (FILE.py:NAME, MODULE:NAME, an entry point's name).
+The options ``run`` and ``serve`` share are defined and checked once (cli/options.py).
 
 A bad flag, an unknown scenario or an unwritable output path: one line on stderr, exit code 2.
 """
