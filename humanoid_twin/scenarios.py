@@ -45,6 +45,7 @@ from humanoid_twin.host.planners import (
     levantar_perna,
     with_control,
 )
+from humanoid_twin.monitor import Monitor
 from humanoid_twin.protocol.wire import ControlType
 from humanoid_twin.rig import (
     BOOT_TIMEOUT_S,
@@ -58,6 +59,7 @@ from humanoid_twin.rig import (
 )
 from humanoid_twin.slave.laws import LawError
 from humanoid_twin.summary import (
+    NO_SUPPORT_MARGIN_MM,
     SLIP_HELD_MM,
     SUMMARY_KEYS,
     build_summary,
@@ -583,7 +585,8 @@ def _host_controller(rig: Rig, step: Callable[..., Any], duration: float, period
         bound["armed"] = False
 
 
-__all__ = ["RunOptions", "outcome", "SLIP_HELD_MM", "SUMMARY_KEYS", "summary_keys_markdown",
+__all__ = ["RunOptions", "outcome", "SLIP_HELD_MM", "SUMMARY_KEYS", "summary_keys_markdown", "Monitor",
+           "NO_SUPPORT_MARGIN_MM",
            "Plan", "Scenario", "REGISTRY", "scenario", "get_scenario", "load_scenario", "scenario_name",
            "ENTRY_POINT_GROUP", "boot", "hold", "BootError", "ScenarioError", "ScenarioInputError",
            "ScenarioLoadError", "SCENARIOS", "CONTROL_CHOICES", "plan", "run", "run_plan", "tilt_profile",
