@@ -499,9 +499,10 @@ def run(opts: RunOptions, on_progress: Callable[[float, float | None], None] | N
     try:
         with _open_rig(opts, expected_s, on_twin, on_progress) as rig:
             rig.boot()                                   # time advances here: the boot
-            duration = rig.end_s = _duration(opts, rig.boot_s or 0.0, motion_s)
+            boot_s = rig.now_s
+            duration = rig.end_s = _duration(opts, boot_s, motion_s)
             completed, host_calls = True, None
-            if duration < (rig.boot_s or 0.0) + motion_s:
+            if duration < boot_s + motion_s:
                 _cut_at(rig, duration)                   # --duration ends inside the program
             try:
                 if rig.host_error is None and (not spec.moves or duration > rig.now_s):
