@@ -282,11 +282,13 @@ killcom(H)
 
 def test_serve_speed_slows_the_twin_down(serve):
     """Issue 25: `serve --speed X` paces the twin at X times real time (the pacer supported it, the
-    CLI did not). At 0.5 the 2.65 s boot takes at least 5.3 s of wall time (at 1x: 2.7 s)."""
+    CLI did not). At 0.5 the 2.65 s boot takes 5.3 s of wall time (at 1x: 2.7 s). The pacer
+    catches up after a stall, so on a loaded machine a boot that starts while the twin lags ends a
+    little early (5.15 s seen): the bound keeps 15 % for that and still fails at 1x."""
     proc, port = serve("--tcp", "0", "--speed", "0.5")
     try:
         out = _client(BOOT_CLIENT, port, timeout=60)
     finally:
         serve.stop(proc)
-    assert out["wall_s"] >= 2.65 / 0.5 - 0.1
+    assert out["wall_s"] >= 0.85 * 2.65 / 0.5
     assert "0.5x real time" in proc.stderr.read()
