@@ -36,7 +36,8 @@ def logged(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, dict[str, in
     H.reset_input_buffer()
     H.write(TEST_MSG)
     twin.run_for(0.0003)             # the request is on its way, its answer not complete yet
-    twin.link.unplug()
+    twin.link.unplug()                     # as a serve session does: the cable, then the receiver
+    twin.master.usart.usartResetRxBuff()
     H.write(TEST_MSG)
     answer = H.read(6)
     killcom(H)
@@ -111,3 +112,63 @@ def test_the_tap_is_removed_on_close(tmp_path: Path) -> None:
         H.write(TEST_MSG)
         H.read(6)
         assert len((tmp_path / "a.log").read_text().splitlines()) == n == 4 + 2
+
+
+def test_a_serve_session_in_real_time_replays(tmp_path: Path) -> None:
+    """serve's own loop (TcpBridge, RealTimePacer at 4x, twin.run_realtime_step), two clients over
+    TCP with pyserial's socket:// URL, the log attached as serve would: the lockstep replay
+    gives the same answers at the same microseconds, whatever wall time each step took."""
+    import threading
+    import time
+
+    from humanoid_twin.bus.bridges import TcpBridge
+    from humanoid_twin.clock import RealTimePacer
+    from humanoid_twin.master.usart import FRAME_GAP_US, PROCESS_US
+
+    path = tmp_path / "serve.serial.log"
+    twin = Twin(seed=1)
+    log = SerialLog.attach(twin, path)
+    bridge = TcpBridge(twin.link, port=0, log=lambda s: None, on_session=twin.master.usart.usartResetRxBuff,
+                       quiet_us=FRAME_GAP_US + PROCESS_US + 1_000)
+    errors: list[BaseException] = []
+
+    def clients() -> None:
+        try:
+            for n in range(2):
+                H, _ = initcom(bridge.port_name)
+                if n == 0:
+                    power_on(H)
+                readjoint(H, 1, 0)
+                H.write(TEST_MSG)
+                assert H.read(6)[:1] == bytes([0xFA])
+                killcom(H)
+                time.sleep(0.3)
+        except BaseException as exc:  # reported by the test below
+            errors.append(exc)
+
+    th = threading.Thread(target=clients, daemon=True)
+    pacer = RealTimePacer(twin.clock, speed=4.0)
+    pacer.start()
+    th.start()
+    deadline = time.monotonic() + 60
+    try:
+        while (th.is_alive() or bridge.sessions < 2) and time.monotonic() < deadline:
+            bridge.poll()
+            if twin.run_realtime_step(pacer, max_step_us=1_000) == 0:
+                time.sleep(0.0005)
+            bridge.poll()
+        for _ in range(200):                  # the second client's leave reaches the bridge
+            bridge.poll()
+            twin.run_realtime_step(pacer, max_step_us=1_000)
+            time.sleep(0.001)
+    finally:
+        bridge.close()
+        log.close()
+        twin.close()
+    assert not errors, errors
+    _, records = read_log(path)
+    assert sum(r.event == "unplug" for r in records) >= 3     # two sessions began, at least one ended
+    res = replay(path)
+    assert res.difference is None, res.difference
+    assert res.twin_bytes == sum(len(r.data) for r in records if r.event == "twin>host") > 400
+

@@ -160,7 +160,9 @@ class ReplayResult:
 
 def replay(path: str | Path, seed: int | None = None) -> ReplayResult:
     """Feed the host->twin bytes of the log at their instants (the flushes and unplugs too) into a
-    fresh twin (seed: the log's, unless given) and compare its twin->host writes with the log's."""
+    fresh twin (seed: the log's, unless given) and compare its twin->host writes with the log's.
+    An unplug is a ``serve`` session's start or end, which also resets the Master's receiver
+    (``bus/bridges.py``): the replay does both."""
     from humanoid_twin.twin import Twin
 
     meta, records = read_log(path)
@@ -184,8 +186,9 @@ def replay(path: str | Path, seed: int | None = None) -> ReplayResult:
                 host += len(rec.data)
             elif rec.event == TAP_FLUSH:
                 twin.link.host_reset_output()
-            else:
+            else:                # a serve client came or left: the cable and the Master's receiver
                 twin.link.unplug()
+                twin.master.usart.usartResetRxBuff()
         end = max((max(r.t_us, r.end_us) for r in records), default=0)
         twin.advance_to(end)
     finally:
