@@ -90,7 +90,7 @@ def blocks(doc: Path) -> list[Block]:
             i = j + 1
             continue
         indented = lines[i].startswith("    ") and COMMAND.match(lines[i][4:])
-        if indented and (i == 0 or not lines[i - 1].strip()):
+        if indented and (i == 0 or not lines[i - 1].strip() or MARKER.search(lines[i - 1])):
             j = i
             while j < len(lines) and lines[j].startswith("    "):
                 j += 1
@@ -286,7 +286,10 @@ def test_the_doc_blocks_are_found_and_the_not_run_list_is_short() -> None:
     not_run = [b for b in runnable if "not-run" in b.marks]
     for b in not_run:
         assert b.marks["not-run"], f"{b.where}: a not-run marker says why"
-    assert len(not_run) <= 16, [b.where for b in not_run]
+    assert len(not_run) <= 8, [b.where for b in not_run]
+    # every marker written in the docs belongs to a block found here (none silently ignored)
+    written = sum(len(MARKER.findall(doc.read_text(encoding="utf-8"))) for doc in DOCS)
+    assert written == sum(len(b.marks) for b in ALL_BLOCKS)
     # the README's quick start is found, its install steps left to tests/test_install.py
     first = shell_commands(ALL_BLOCKS[0].text)
     assert first == [(".venv/bin/humanoid-twin run flexao --out flexao.rrd", 0)]
