@@ -10,7 +10,9 @@ are the same for all: ``stand`` (leader/follower gains on the leg boards, docs/b
 - at a 20 deg tilt: the smallest CoP margin and the RMS error of the boards' CoP;
 - ``levantar_perna`` perna 1 and 2, seeds 0-9: the smallest CoP margin.
 
-Prints a markdown table. ``--jobs N`` runs N processes (default 2).
+Prints a markdown table on stdout. ``--jobs N`` runs N processes (default 2). The study takes
+minutes: its progress goes to stderr (a tqdm bar on a terminal, else one line per finished task,
+with the elapsed time and an estimate of the rest; ``--no-progress`` for none).
 """
 
 from __future__ import annotations
@@ -18,7 +20,7 @@ from __future__ import annotations
 import argparse
 import sys
 import time
-from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures import ProcessPoolExecutor, as_completed
 from pathlib import Path
 from typing import Any
 
@@ -81,16 +83,52 @@ def _task(job: tuple[str, str]) -> tuple[str, str, Any]:
     return kind, name, fn(ref)
 
 
+class _Progress:
+    """Tasks done / total on stderr: a tqdm bar on a terminal, else a plain line per task."""
+
+    def __init__(self, total: int, on: bool) -> None:
+        self.total, self.done, self.on = total, 0, on
+        self.t0 = time.perf_counter()
+        self.bar: Any = None
+        if on and sys.stderr.isatty():
+            from tqdm import tqdm
+
+            self.bar = tqdm(total=total, unit="task", desc="compare_laws", file=sys.stderr)
+
+    def update(self, what: str) -> None:
+        self.done += 1
+        if self.bar is not None:
+            self.bar.set_postfix_str(what, refresh=False)
+            self.bar.update(1)
+        elif self.on:
+            wall = time.perf_counter() - self.t0
+            eta = wall / self.done * (self.total - self.done)
+            print(f"compare_laws: {self.done}/{self.total} tasks done ({what}), {wall:.0f} s elapsed, "
+                  f"ETA {eta:.0f} s", file=sys.stderr, flush=True)
+
+    def close(self) -> None:
+        if self.bar is not None:
+            self.bar.close()
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--jobs", type=int, default=2)
+    ap.add_argument("--no-progress", action="store_true", help="no progress on stderr")
     args = ap.parse_args(argv)
     t0 = time.perf_counter()
     jobs = [(kind, name) for name in LAWS for kind in ("tilt", "at20", "one_leg")]
     res: dict[tuple[str, str], Any] = {}
+    bar = _Progress(len(jobs), not args.no_progress)
     with ProcessPoolExecutor(max(1, args.jobs)) as ex:
-        for kind, name, value in ex.map(_task, jobs):
-            res[(kind, name)] = value
+        futures = [ex.submit(_task, job) for job in jobs]
+        try:
+            for fut in as_completed(futures):
+                kind, name, value = fut.result()
+                res[(kind, name)] = value
+                bar.update(f"{kind}: {name.split(' (')[0]}")
+        finally:
+            bar.close()
     print("| law (for BALANCE_CONTROL) | largest tilt held (deg) | CoP margin at 20 deg (mm) | "
           "CoP error at 20 deg (mm RMS) | levantar_perna CoP margin (mm) |")
     print("|---|---|---|---|---|")

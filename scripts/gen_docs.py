@@ -8,7 +8,8 @@ Each block sits between ``<!-- generated: NAME -->`` and ``<!-- end generated: N
 - ``summary-keys`` in docs/scenarios.md: the run summary's keys (``summary.SUMMARY_KEYS``).
 
 docs/fault_matrix.md is the output of ``scripts/fault_matrix.py --seed 0 --out docs/fault_matrix.md``
-(48 runs; tests/test_docs.py re-runs some of its rows and compares).
+(48 runs; tests/test_docs.py checks its text and cells against the script, re-runs a sample of
+its rows and compares).
 """
 
 from __future__ import annotations

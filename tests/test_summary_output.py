@@ -62,6 +62,15 @@ def test_a_duration_shorter_than_the_boot_is_one_line(tmp_path: Path) -> None:
     assert list(tmp_path.iterdir()) == []
 
 
+def test_a_duration_inside_this_seeds_boot_is_one_line_too(tmp_path: Path) -> None:
+    # 2.6 s passes the up-front check (the 2.5 s calibration) but seed 0 boots until 2.653 s: the
+    # run finds it after the boot. With progress on in a log (stderr a pipe), the error alone.
+    r = cli("run", "flexao", "--duration", "2.6", cwd=tmp_path)
+    assert r.returncode == 2 and r.stdout == ""
+    assert r.stderr.count("\n") == 1 and "shorter than the boot (2.653" in r.stderr, r.stderr
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_outcome_words() -> None:
     assert (outcome(False, 7.1), outcome(False, 456.0), outcome(True, 456.0)) == ("held", "slid", "fell")
 

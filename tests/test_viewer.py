@@ -120,3 +120,45 @@ def test_the_web_url_asks_for_webgl() -> None:
     from humanoid_twin.recording.viewer import web_url
 
     assert web_url(9090, 9876).endswith("&renderer=webgl")
+
+
+def _screenshot_script():  # noqa: ANN202
+    import importlib.util
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parent.parent / "scripts" / "screenshot_viewer.py"
+    spec = importlib.util.spec_from_file_location("screenshot_viewer", path)
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+@pytest.mark.slow
+def test_view_web_renders_a_recording_in_headless_chromium(tmp_path):
+    import shutil
+
+    if not any(shutil.which(n) for n in ("chromium", "chromium-browser", "google-chrome")):
+        pytest.skip("no Chromium here (apt-get install -y chromium): the web viewer's drawing is not checked")
+    pytest.importorskip("PIL.Image", reason="Pillow reads the screenshot")
+    rrd = tmp_path / "stand.rrd"
+    r = subprocess.run([sys.executable, "-m", "humanoid_twin.cli.main", "run", "stand", "--duration", "2.7",
+                        "--out", str(rrd), "--no-progress"], cwd=tmp_path, capture_output=True, text=True,
+                       timeout=300)
+    assert r.returncode == 0, r.stderr
+    shots = _screenshot_script()
+    port = free_loopback_port()
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "humanoid_twin.cli.main", "view", "--web", "--port", str(port), str(rrd)],
+        stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True, start_new_session=True,
+    )
+    png = tmp_path / "web.png"
+    try:
+        url = next(w for w in proc.stdout.readline().split() if w.startswith("http://"))
+        assert "renderer=webgl" in url
+        time.sleep(2)
+        colours = shots.shoot_web(url, png, "1200,800", tmp_path / "profile", 120.0)
+    finally:
+        proc.send_signal(signal.SIGTERM)
+        assert proc.wait(30) == 143
+    # a canvas that stayed blank ("Loading ...") or the welcome page: a few hundred colours at most
+    assert colours >= shots.DRAWN_MIN_COLOURS, f"{colours} colours in {png}: the web viewer drew nothing"

@@ -23,6 +23,7 @@ cdef class SerialLink:
     cdef public _Direction _to_host
     cdef public object _device_rx
     cdef public list _host_wakeups
+    cdef public list _taps
     cdef public double _noise_prob
     cdef public object _rng
     cdef public long long bytes_to_device

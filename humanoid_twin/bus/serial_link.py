@@ -9,6 +9,8 @@ previous ones; a byte written when the line is idle starts a new burst at ``cloc
 Device (Master) side: ``set_device_rx(cb)`` gets each byte at its stop bit (one clock event per
 byte), ``device_write(data)``. Host side: ``host_write(data)``, ``host_read_available()`` (the
 bytes whose stop bit is <= now), ``next_host_byte_us()`` and optional wakeup hooks for bridges.
+Observers: ``add_tap(cb)`` sees every write in either direction and every drop of bytes on their
+way (``bus/serial_log.py`` writes them to a file).
 """
 
 from __future__ import annotations
@@ -21,6 +23,10 @@ from humanoid_twin.clock import US_PER_S, Clock
 from humanoid_twin.protocol.wire import BAUDRATE, BYTESIZE, PARITY, STOPBITS
 
 DEFAULT_BAUDRATE = BAUDRATE
+TAP_TO_DEVICE = "host>twin"     # the tap's events (add_tap)
+TAP_TO_HOST = "twin>host"
+TAP_FLUSH = "flush"
+TAP_UNPLUG = "unplug"
 _PARITY_BITS = {"N": 0, "E": 1, "O": 1, "M": 1, "S": 1}
 
 
@@ -73,6 +79,7 @@ class SerialLink:
         self._to_host = _Direction()
         self._device_rx: Callable[[int], None] | None = None
         self._host_wakeups: list[Callable[[], None]] = []
+        self._taps: list[Callable[[str, int, bytes, int], None]] = []
         self._noise_prob = 0.0
         self._rng = random.Random(0)
         self.bytes_to_device = 0
@@ -141,6 +148,8 @@ class SerialLink:
         data = _as_bytes(data, "device_write")
         times = self._push(self._to_host, data)
         self.bytes_to_host += len(data)
+        if self._taps and times:
+            self._tap(TAP_TO_HOST, self._to_host, times)
         if self._host_wakeups:
             for t in times:
                 self.clock.schedule(t, self._wake_host)
@@ -155,6 +164,8 @@ class SerialLink:
         data = _as_bytes(data, "host_write")
         times = self._push(self._to_dev, data)
         self.bytes_to_device += len(data)
+        if self._taps and times:
+            self._tap(TAP_TO_DEVICE, self._to_dev, times)
         deliver = self._deliver_to_device
         for t in times:
             self.clock.schedule(t, deliver)
@@ -211,7 +222,11 @@ class SerialLink:
 
     def host_reset_output(self) -> int:
         """Discard host bytes not yet started on the line; returns how many."""
-        return self._cancel_unsent(self._to_dev)
+        dropped = self._cancel_unsent(self._to_dev)
+        if self._taps and dropped:
+            for cb in self._taps:
+                cb(TAP_FLUSH, self.clock.now_us, b"", dropped)
+        return dropped
 
     def host_out_done_us(self) -> int:
         """Virtual time at which the last byte written by the host reaches the device."""
@@ -235,6 +250,9 @@ class SerialLink:
             d.queue.clear()
             d.n = 0
             d.burst_start = d.last_end = now
+        if self._taps:
+            for cb in self._taps:
+                cb(TAP_UNPLUG, now, b"", dropped[0] + dropped[1])
         return dropped[0], dropped[1]
 
     def host_reset_input(self) -> int:
@@ -250,6 +268,32 @@ class SerialLink:
     def remove_host_rx_wakeup(self, cb: Callable[[], None]) -> None:
         """Undo :meth:`add_host_rx_wakeup`."""
         self._host_wakeups.remove(cb)
+
+    # -- observers ---------------------------------------------------------------------------
+    def add_tap(self, cb: Callable[[str, int, bytes, int], None]) -> None:
+        """Call ``cb(event, t_us, data, n)`` on every event of the cable, at ``clock.now_us``:
+
+        - ``TAP_TO_DEVICE`` / ``TAP_TO_HOST``: ``data`` handed to the host's / the Master's
+          transmitter at ``t_us`` (as the wire carries them: after an injected bit flip), ``n`` the
+          stop-bit time of its last byte (each byte's own stop bit follows from the burst rule
+          above);
+        - ``TAP_FLUSH``: the host discarded ``n`` bytes not yet started (``host_reset_output``);
+        - ``TAP_UNPLUG``: the cable was unplugged, ``n`` bytes lost in both directions.
+        """
+        if not callable(cb):
+            raise TypeError(f"tap must be callable, got {cb!r}")
+        self._taps.append(cb)
+
+    def remove_tap(self, cb: Callable[[str, int, bytes, int], None]) -> None:
+        """Undo :meth:`add_tap`."""
+        self._taps.remove(cb)
+
+    def _tap(self, event: str, d: _Direction, times: list) -> None:
+        q = d.queue
+        n = len(times)
+        wire = bytes([q[i][1] for i in range(len(q) - n, len(q))])   # this write: the queue's tail
+        for cb in self._taps:
+            cb(event, self.clock.now_us, wire, times[n - 1])
 
     # -- faults --------------------------------------------------------------------------------
     def set_noise(self, prob: float, seed: int = 0) -> None:

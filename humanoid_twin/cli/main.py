@@ -386,7 +386,7 @@ def _run(args: argparse.Namespace, opts: Any, outputs: _Outputs) -> int:
     if opts.progress:
         from humanoid_twin.cli.progress import RunProgress
 
-        bar = RunProgress(args.scenario, sys.stderr)
+        bar = RunProgress(args.scenario, sys.stderr, duration_s=args.duration)
     live = None
     viewer_errors: tuple[type[Exception], ...] = ()
     if args.viewer:

@@ -9,14 +9,18 @@ sensors, CoP and balance, bus counters, and the upper-body boards.
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import Any
 
+import rerun as rr
 import rerun.blueprint as rrb
+from rerun.blueprint.encodings import TextLogColumn, TextLogColumnKind
 
 from humanoid_twin.hardware import FOOT_OF_SCU, LEG_SCUS, N_SERVOS, SERVO_JOINTS
 from humanoid_twin.protocol.wire import SCUS
 from humanoid_twin.recording.paths import (
     CAN,
     FEET,
+    KEYS,
     ROBOT,
     SERIAL,
     SUPERVISOR,
@@ -26,7 +30,7 @@ from humanoid_twin.recording.paths import (
     servo_path,
 )
 
-__all__ = ["default_blueprint", "LEG_SCUS"]
+__all__ = ["default_blueprint", "log_keys", "LEG_SCUS"]
 
 
 
@@ -34,25 +38,51 @@ __all__ = ["default_blueprint", "LEG_SCUS"]
 # its front right, a little above the hips, instead of rerun's default framing of the whole floor.
 EYE_POSITION = (0.70, -0.60, 0.45)
 EYE_TARGET = (0.0, 0.0, 0.22)
-# Legends: in the top-left corner of each plot, where the joint plots start from rest.
+# Legends: in the top-left corner of a plot with several series; none on a plot with one (its
+# title names it) nor on the joint plots, whose five series are named once, in a key line above
+# their grid (five-entry legends covered the first seconds of every joint plot).
 _LEGEND = rrb.PlotLegend(corner="LeftTop", visible=True)
+_NO_LEGEND = rrb.PlotLegend(visible=False)
+# Fixed y ranges where rerun's own would show a single tick label: a flag from 0 to 1, the
+# supervisor's modes 0-4 (a user can still zoom out).
+_FLAG_RANGE = (-0.1, 1.1)
+_MODE_RANGE = (-0.5, 4.5)
+# the event log: time, level, text (every event is on one entity: its path says nothing)
+_LOG_COLUMNS = rrb.TextLogColumns(text_log_columns=[
+    TextLogColumn(TextLogColumnKind.LogLevel), TextLogColumn(TextLogColumnKind.Body),
+    TextLogColumn(TextLogColumnKind.EntityPath, visible=False)])
+JOINT_KEY = f"{KEYS}/joints"
+JOINT_KEY_TEXT = ("Each plot: one joint, degrees (servo frame). **grey** reference (the Master's target), "
+                  "**blue** trajectory (this tick's set-point), **purple** commanded (the PWM's position), "
+                  "**orange** measured (the firmware's potentiometer), **green** true (the plant). "
+                  "Hover a curve for its value.")
 
 
-def _plot(name: str, origin: str, **kw: object) -> rrb.TimeSeriesView:
-    return rrb.TimeSeriesView(name=name, origin=origin, plot_legend=_LEGEND, **kw)
+def _plot(name: str, origin: str, *, legend: bool = True, y_range: tuple[float, float] | None = None,
+          **kw: object) -> rrb.TimeSeriesView:
+    axis = None if y_range is None else rrb.ScalarAxis(range=y_range)
+    return rrb.TimeSeriesView(name=name, origin=origin, plot_legend=_LEGEND if legend else _NO_LEGEND,
+                              axis_y=axis, **kw)
 
 
 def _joint_title(scu: int, i: int) -> str:
-    return f"{SERVO_JOINTS[scu][i]} (SCU {scu} servo {i + 1})"
+    return f"{SERVO_JOINTS[scu][i]} (SCU {scu} servo {i + 1}), deg"
 
 
-def _joint_grid(scus: Sequence[int], name: str) -> rrb.Grid:
+def _joint_grid(scus: Sequence[int], name: str) -> rrb.Vertical:
     views = [
-        _plot(_joint_title(scu, i), f"{servo_path(scu, i)}/position")
+        _plot(_joint_title(scu, i), f"{servo_path(scu, i)}/position", legend=False)
         for scu in scus
         for i in range(N_SERVOS)
     ]
-    return rrb.Grid(*views, grid_columns=2, name=name)
+    key = rrb.TextDocumentView(origin=JOINT_KEY, titlebar=False, name="key")
+    rows = -(-len(views) // 2)
+    return rrb.Vertical(key, rrb.Grid(*views, grid_columns=2), row_shares=[1, 6 * rows], name=name)
+
+
+def log_keys(rec: Any) -> None:
+    """The static texts the blueprint shows (the joint tabs' colour key), into recording ``rec``."""
+    rec.log(JOINT_KEY, rr.TextDocument(JOINT_KEY_TEXT, media_type=rr.MediaType.MARKDOWN), static=True)
 
 
 def default_blueprint(
@@ -102,33 +132,40 @@ def default_blueprint(
         grid_columns=2,
         name="Force sensors",
     )
+    # the CoP plots get a tab of their own: taller plots, readable ticks on a few mm of motion
     cop = rrb.Grid(
         *[
             _plot(
-                name=f"{foot_side(s)} CoP {axis} (mm): firmware vs truth", origin=f"{scu_path(s)}/cop/{axis}"
+                name=f"{foot_side(s)} CoP {axis} (mm, {'right' if axis == 'x' else 'forward'} +): "
+                     "firmware vs truth",
+                origin=f"{scu_path(s)}/cop/{axis}",
             )
             for s in feet
             for axis in ("x", "y")
         ],
-        _plot(name="CoP margin (mm)", origin=f"{ROBOT}/cop_margin_mm"),
-        _plot(name="trunk tilt (deg)", origin=f"{ROBOT}/trunk_tilt_deg"),
-        _plot(name="CoM height (mm)", origin=f"{ROBOT}/com_height_mm"),
-        _plot(name="fell", origin=f"{ROBOT}/fell"),
-        _plot(name="platform tilt (deg, toes up +)", origin=f"{ROBOT}/platform_tilt_deg"),
-        _plot(name="total normal force (N)", origin=f"{ROBOT}/total_force_n"),
         grid_columns=2,
-        name="CoP & balance",
+        name="CoP",
+    )
+    balance = rrb.Grid(
+        _plot(name="CoP margin (mm)", origin=f"{ROBOT}/cop_margin_mm", legend=False),
+        _plot(name="trunk tilt (deg)", origin=f"{ROBOT}/trunk_tilt_deg", legend=False),
+        _plot(name="CoM height (mm)", origin=f"{ROBOT}/com_height_mm", legend=False),
+        _plot(name="fell (0 no, 1 yes)", origin=f"{ROBOT}/fell", legend=False, y_range=_FLAG_RANGE),
+        _plot(name="platform tilt (deg, toes up +)", origin=f"{ROBOT}/platform_tilt_deg", legend=False),
+        _plot(name="total normal force (N)", origin=f"{ROBOT}/total_force_n", legend=False),
+        grid_columns=2,
+        name="Balance",
     )
     counters = rrb.Grid(
-        _plot(name="CAN frames/s", origin=f"{CAN}/frames_per_s"),
-        _plot(name="CAN bus load (%)", origin=f"{CAN}/load_percent"),
+        _plot(name="CAN frames/s", origin=f"{CAN}/frames_per_s", legend=False),
+        _plot(name="CAN bus load (%)", origin=f"{CAN}/load_percent", legend=False),
         _plot(
             name="CAN errors", origin=CAN, contents=[f"{CAN}/error_frames", f"{CAN}/frames_dropped"]
         ),
         _plot(name="Master CAN controller (state, TEC, REC)", origin=f"{CAN}/master_controller"),
-        _plot(name="serial bytes", origin=SERIAL),
+        _plot(name="serial bytes (cable)", origin=SERIAL),
         *[
-            _plot(name=f"Master {p.split('/', 1)[1].replace('_', ' ')}", origin=p)
+            _plot(name=f"Master {p.split('/', 1)[1].replace('_', ' ')} (count)", origin=p)
             for p in master_entities
         ],
         grid_columns=2,
@@ -146,10 +183,11 @@ def default_blueprint(
         grid_columns=2,
         name="Boards",
     )
-    supervisor = rrb.Vertical(
-        _plot("Supervisor mode (0 standby 1 self_check 2 ready 3 safe 4 estop), faults latched",
-              f"{SUPERVISOR}/mode"),
-        rrb.TextLogView(name="Supervisor events", origin=f"{SUPERVISOR}/events"),
+    # the events beside the plot: a log's lines are short, a full-width table left most of it empty
+    supervisor = rrb.Horizontal(
+        _plot("Supervisor mode and faults latched", f"{SUPERVISOR}/mode", y_range=_MODE_RANGE),
+        rrb.TextLogView(name="Supervisor events", origin=f"{SUPERVISOR}/events", columns=_LOG_COLUMNS),
+        column_shares=[3, 2],
         name="Supervisor",
     )
     tabs: list[rrb.Container] = []
@@ -161,7 +199,7 @@ def default_blueprint(
             tabs.append(_joint_grid(mine, side))
     tabs += [currents]
     if feet:
-        tabs += [forces, cop]
+        tabs += [forces, cop, balance]
     tabs += [counters, supervisor, boards]
     if upper:
         tabs.append(_joint_grid(upper, "Upper body"))

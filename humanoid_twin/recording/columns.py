@@ -49,8 +49,17 @@ PURPLE: RGB = (148, 103, 189)
 ORANGE: RGB = (255, 127, 14)
 GREEN: RGB = (44, 160, 44)
 RED: RGB = (214, 39, 40)
+PINK: RGB = (227, 119, 194)
+CYAN: RGB = (23, 190, 207)
+YELLOW: RGB = (230, 230, 70)
+TAN: RGB = (196, 156, 148)
+NEUTRAL: RGB = (200, 205, 215)       # a plot of one quantity (its title names it)
+# orange is always a firmware value and green the ground truth (joint measured/true, CoP firmware/
+# truth, velocities), in the plots and in the foot views beside them; no other series uses them
 POSITION_COLOURS: tuple[RGB, ...] = (GREY, BLUE, PURPLE, ORANGE, GREEN)   # POSITION_SERIES order
-SENSOR_COLOURS: tuple[RGB, ...] = (RED, BLUE, ORANGE, GREEN)               # SENSOR_NAMES order
+SENSOR_COLOURS: tuple[RGB, ...] = (RED, CYAN, PINK, YELLOW)               # SENSOR_NAMES order (FL FR RL RR)
+CURRENT_COLOURS: tuple[RGB, ...] = (BLUE, PURPLE, TAN)                    # servo 1, 2, 3 of a board
+COUNTER_COLOURS: tuple[RGB, ...] = (BLUE, PURPLE, RED, TAN)               # several counts in one plot
 
 # Master.stats() keys with these prefixes share one entity (one series per key): master/can, ...
 _MASTER_GROUPS = ("serial_frames_", "serial_bytes_", "can_")
@@ -207,15 +216,16 @@ def _board_columns(scu: int, slave: Any, first: int) -> list[Column]:
         sp = servo_path(scu, i)
         servo.column(f"{sp}/position", POSITION_SERIES, "deg (servo frame)", POSITION_COLOURS)
         servo.column(f"{sp}/velocity", ("measured", "true"), "deg per PWM period", (ORANGE, GREEN))
-        servo.column(f"{sp}/current", (f"{SERVO_JOINTS[scu][i]} ({i + 1})",), "ADC 0..100")
+        servo.column(f"{sp}/current", (f"{SERVO_JOINTS[scu][i]} ({i + 1})",), "ADC 0..100",
+                     (CURRENT_COLOURS[i],))
 
     def flags(t: Tick) -> Sequence[float]:
         st = slave.sensors.sysStatus
         return (st.pwm, st.calib, slave.deadline_violations)
 
     counters = ColumnGroup(flags, every=COUNTER_EVERY)
-    counters.column(f"{base}/status", ("pwm", "calibrated"), "flag")
-    counters.column(f"{base}/deadline_violations", ("deadline violations",), "count")
+    counters.column(f"{base}/status", ("pwm", "calibrated"), "flag", (BLUE, PURPLE))
+    counters.column(f"{base}/deadline_violations", ("deadline violations",), "count", (RED,))
     cols = [*servo.columns, *counters.columns]
     foot = FOOT_OF_SCU.get(scu)
     if foot is None:
@@ -249,12 +259,12 @@ def _robot_columns() -> list[Column]:
                 truth.total_normal_force_n, t.twin.plant.tilt_deg)
 
     group = ColumnGroup(balance)
-    group.column(f"{ROBOT}/trunk_tilt_deg", ("trunk tilt",), "deg")
-    group.column(f"{ROBOT}/com_height_mm", ("CoM height",), "mm")
-    group.column(f"{ROBOT}/cop_margin_mm", ("CoP margin",), "mm", sparse=True)
+    group.column(f"{ROBOT}/trunk_tilt_deg", ("trunk tilt",), "deg", (NEUTRAL,))
+    group.column(f"{ROBOT}/com_height_mm", ("CoM height",), "mm", (NEUTRAL,))
+    group.column(f"{ROBOT}/cop_margin_mm", ("CoP margin",), "mm", (NEUTRAL,), sparse=True)
     group.column(f"{ROBOT}/fell", ("fell",), "flag", (RED,))
-    group.column(f"{ROBOT}/total_force_n", ("total normal force",), "N")
-    group.column(f"{ROBOT}/platform_tilt_deg", ("platform tilt",), "deg")
+    group.column(f"{ROBOT}/total_force_n", ("total normal force",), "N", (NEUTRAL,))
+    group.column(f"{ROBOT}/platform_tilt_deg", ("platform tilt",), "deg", (NEUTRAL,))
     return group.columns
 
 
@@ -289,13 +299,13 @@ def _bus_columns(twin: Any) -> list[Column]:
                                       ctl.rec, link.bytes_to_device, link.bytes_to_host), every=COUNTER_EVERY)
     return [
         Column(f"{CAN}/frames", ("frames",), "count", lambda t: (net.frames_sent,), every=COUNTER_EVERY),
-        rates.column(f"{CAN}/frames_per_s", ("frames/s",), "1/s"),
-        rates.column(f"{CAN}/load_percent", ("bus load",), "%"),
+        rates.column(f"{CAN}/frames_per_s", ("frames/s",), "1/s", (NEUTRAL,)),
+        rates.column(f"{CAN}/load_percent", ("bus load",), "%", (NEUTRAL,)),
         counters.column(f"{CAN}/error_frames", ("error frames",), "count", (RED,)),
-        counters.column(f"{CAN}/frames_dropped", ("frames dropped",), "count", (ORANGE,)),
+        counters.column(f"{CAN}/frames_dropped", ("frames dropped",), "count", (TAN,)),
         counters.column(f"{CAN}/master_controller", ("state (0 active, 1 passive, 2 off)", "TEC", "REC"),
-                        "code / count"),
-        counters.column(f"{SERIAL}/bytes", ("to device", "to host"), "bytes"),
+                        "code / count", COUNTER_COLOURS[:3]),
+        counters.column(f"{SERIAL}/bytes", ("to device", "to host"), "bytes", COUNTER_COLOURS[:2]),
     ]
 
 
@@ -325,7 +335,9 @@ def _master_columns(twin: Any, groups: list[tuple[str, list[str]]]) -> list[Colu
         return [st.get(k, _NAN) for k in keys]
 
     group = ColumnGroup(stats, every=COUNTER_EVERY)
-    return [group.column(path, tuple(ks), "count") for path, ks in groups]
+    return [group.column(path, tuple(ks), "count",
+                         tuple(COUNTER_COLOURS[i % len(COUNTER_COLOURS)] for i in range(len(ks))))
+            for path, ks in groups]
 
 
 def twin_columns(twin: Any, scus: Sequence[int]) -> list[Column]:

@@ -4,6 +4,7 @@ The poses that move them are sampled by the recorder; docs/recording.md."""
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterable, Sequence
 from typing import Any
 
@@ -17,6 +18,8 @@ from humanoid_twin.recording.paths import BODIES, WORLD, foot_view_path
 __all__ = ["log_static", "log_geometry", "log_foot_static", "view_xy", "SENSOR_LABELS"]
 
 SENSOR_LABELS = FORCE_SENSOR_LABELS      # table 12 order
+# A sensor's name is drawn this far outside the foot's outline (mm), level with its pad.
+SENSOR_LABEL_GAP_MM = 16.0
 # An infinite MuJoCo plane (size 0) is drawn as a square of this half size (m).
 _FLOOR_HALF_M = 1.5
 
@@ -38,8 +41,11 @@ def log_foot_static(rec: Any, scu: int) -> None:
     rec.log(f"{v}/forward", rr.Arrows2D(origins=[[0.0, 0.0]], vectors=[[0.0, -0.8 * hl]],
                                         colors=[(90, 90, 90)], labels=["forward"]), static=True)
     xy = view_xy(FORCE_SENSOR_XY_MM)
-    rec.log(f"{v}/sensors", rr.Points2D(xy, radii=[3.0] * 4, colors=list(SENSOR_COLOURS),
-                                        labels=list(SENSOR_LABELS), show_labels=True), static=True)
+    rec.log(f"{v}/sensors", rr.Points2D(xy, radii=[3.0] * 4, colors=list(SENSOR_COLOURS)), static=True)
+    # each sensor's name outside the outline, beside its pad: on the pad its load circle would hide it
+    names_xy = [[math.copysign(hw + SENSOR_LABEL_GAP_MM, x), y] for x, y in xy]
+    rec.log(f"{v}/sensor_names", rr.Points2D(names_xy, radii=[0.5] * 4, colors=list(SENSOR_COLOURS),
+                                             labels=list(SENSOR_LABELS), show_labels=True), static=True)
     rec.log(f"{v}/loads", rr.Points2D(xy, colors=[(*c, 110) for c in SENSOR_COLOURS]), static=True)
     rec.log(f"{v}/cop/firmware", rr.Points2D([[0.0, 0.0]], radii=[4.0], colors=[ORANGE]), static=True)
     rec.log(f"{v}/cop/truth", rr.Points2D([[0.0, 0.0]], radii=[3.0], colors=[GREEN]), static=True)

@@ -16,6 +16,7 @@ __all__ = [
     "SERIAL",
     "MASTER",
     "SUPERVISOR",
+    "KEYS",
     "scu_path",
     "servo_path",
     "foot_side",
@@ -38,6 +39,7 @@ CAN = "bus/can"
 SERIAL = "bus/serial"
 MASTER = "master"                     # Master.stats() counters
 SUPERVISOR = "supervisor"             # the Master supervisor: mode series, events (TextLog)
+KEYS = "keys"                         # static text: the colour keys of the joint tabs (TextDocument)
 
 
 def scu_path(scu: int) -> str:

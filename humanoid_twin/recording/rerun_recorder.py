@@ -47,8 +47,10 @@ from humanoid_twin.clock import US_PER_S
 from humanoid_twin.hardware import FOOT_OF_SCU, N_SPECIAL_SENSORS, PWM_PERIOD_US
 from humanoid_twin.plant.plant import WXYZ_TO_XYZW
 from humanoid_twin.protocol.wire import SCUS
-from humanoid_twin.recording.blueprint import default_blueprint
+from humanoid_twin.recording.blueprint import default_blueprint, log_keys
 from humanoid_twin.recording.columns import (
+    BLUE,
+    RED,
     Column,
     Tick,
     group_reader,
@@ -284,6 +286,7 @@ class Recorder:
     def _log_static(self) -> None:
         rec = self.rec
         log_static(rec, self.twin.plant, self._body_names, self._feet)
+        log_keys(rec)
         for c in self.columns:
             kw: dict[str, Any] = {"names": list(c.names)}
             if c.colors is not None:
@@ -612,7 +615,7 @@ def _supervisor_columns(twin: Any) -> list[Column]:
         return (mode, nfaults)
 
     return [Column(f"{SUPERVISOR}/mode", ("mode (0 standby 1 self_check 2 ready 3 safe 4 estop)",
-                                          "faults latched"), "code / count", read)]
+                                          "faults latched"), "code / count", read, (BLUE, RED))]
 
 
 # -- helpers -----------------------------------------------------------------------------------------

@@ -85,38 +85,49 @@ def free_loopback_port() -> int:
 def view(path: str | pathlib.Path, *, web: bool = False, web_port: int = DEFAULT_WEB_PORT,
          grpc_port: int | None = None) -> int:
     """Run the viewer on ``path`` until it exits; its exit code. With ``web`` the URL is printed
-    on stdout first (Ctrl-C stops the server); ``grpc_port`` None: a free loopback port."""
+    on stdout once rerun's server is started (Ctrl-C stops it); ``grpc_port`` None: a free
+    loopback port."""
     if web:
         check_port_free(web_port, "--port")
         if grpc_port is None:
             grpc_port = free_loopback_port()
         else:
             check_port_free(grpc_port, "gRPC port")
-        print(f"rerun web viewer: {web_url(web_port, grpc_port)}  (Ctrl-C to stop)", flush=True)
+        url = web_url(web_port, grpc_port)
         cmd = web_viewer_command(path, web_port, grpc_port)
     else:
         if not has_display():
             raise ViewerError("no display (DISPLAY/WAYLAND_DISPLAY unset): use `view --web FILE.rrd` "
                               "and open the printed URL in a browser")
+        url = None
         cmd = native_viewer_command(path)
-    proc = subprocess.Popen(cmd)
+    proc: subprocess.Popen | None = None
     got: list[int] = []
 
     def _forward(signum: int, frame: object) -> None:   # SIGTERM/SIGHUP: stop rerun too, not orphan it
         got.append(signum)
-        proc.terminate()
+        if proc is not None:
+            proc.terminate()
 
+    # the forwarder is in place before rerun starts and before the URL is printed: a SIGTERM
+    # right after the URL (a script, a supervisor) stops rerun too, never orphans it
     old = {sig: signal.signal(sig, _forward) for sig in (signal.SIGTERM, signal.SIGHUP)}
     try:
+        proc = subprocess.Popen(cmd)
+        if got:
+            proc.terminate()
+        elif url is not None:
+            print(f"rerun web viewer: {url}  (Ctrl-C to stop)", flush=True)
         code = proc.wait()
         # stopped by a signal: 128 + its number, as run does (143 for SIGTERM), not rerun's own code
         return 128 + got[0] if got else code
     except KeyboardInterrupt:      # Ctrl-C reaches rerun too (same process group)
-        proc.terminate()
-        proc.wait(10)
+        if proc is not None:
+            proc.terminate()
+            proc.wait(10)
         return 130
     finally:
         for sig, handler in old.items():
             signal.signal(sig, handler)
-        if proc.poll() is None:
+        if proc is not None and proc.poll() is None:
             proc.kill()

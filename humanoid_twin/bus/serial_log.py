@@ -1,0 +1,234 @@
+"""The RS-232 traffic of a twin, byte for byte, in a text file, and its replay into a fresh twin.
+
+Writing: :meth:`SerialLog.attach` taps the twin's cable (``SerialLink.add_tap``) and writes one
+line per write in either direction, per host flush and per unplugged cable, in virtual time
+(the format: docs/buses.md, "The serial log"). Replaying: :func:`replay` feeds the host's bytes
+at their instants into a fresh twin of the same seed and compares the twin's answers with the
+log, byte for byte and microsecond for microsecond::
+
+    python -m humanoid_twin.bus.serial_log replay FILE     # exit 0: the twin answered as logged
+
+Exit codes of the command: 0 the answers match, 1 they differ (the first difference on stderr),
+2 the file is not a serial log (one line on stderr).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+from typing import IO, Any
+
+from humanoid_twin.bus.serial_link import TAP_FLUSH, TAP_TO_DEVICE, TAP_TO_HOST, TAP_UNPLUG, SerialLink
+
+MAGIC = "# humanoid-twin serial log 1"
+_EVENTS = (TAP_TO_DEVICE, TAP_TO_HOST, TAP_FLUSH, TAP_UNPLUG)
+
+
+@dataclass(frozen=True)
+class Record:
+    """One line of a serial log: ``event`` at ``t_us``; a write's ``data`` and the stop-bit time
+    of its last byte ``end_us``, or a drop's byte count ``dropped``."""
+
+    t_us: int
+    event: str
+    data: bytes = b""
+    end_us: int = 0
+    dropped: int = 0
+
+    def line(self) -> str:
+        if self.event in (TAP_TO_DEVICE, TAP_TO_HOST):
+            return f"{self.t_us} {self.event} {self.end_us} {self.data.hex(' ')}"
+        return f"{self.t_us} {self.event} {self.dropped}"
+
+
+class SerialLogError(ValueError):
+    """A file that is not a serial log (or a line that breaks its format)."""
+
+
+class SerialLog:
+    """Writes every event of ``link`` to ``path`` (text, one line per event, flushed per line).
+
+    ``meta`` goes into the header as JSON (``seed`` is what :func:`replay` needs).
+    """
+
+    def __init__(self, path: str | Path, link: SerialLink, meta: dict[str, Any] | None = None) -> None:
+        self.path = Path(path)
+        self.link = link
+        self.records = 0
+        self._f: IO[str] | None = open(self.path, "w", encoding="ascii", buffering=1)  # noqa: SIM115
+        settings = f"{link.baudrate} {link.bytesize}{link.parity}{link.stopbits}"
+        self._f.write(f"{MAGIC}\n# line {settings}; times in virtual microseconds since the twin started\n"
+                      f"# meta {json.dumps(meta or {}, sort_keys=True)}\n"
+                      "# t_us event end_us bytes(hex) | t_us flush|unplug bytes_dropped\n")
+        link.add_tap(self._on_event)
+
+    @classmethod
+    def attach(cls, twin: Any, path: str | Path) -> SerialLog:
+        """Log the RS-232 cable of ``twin`` (a :class:`~humanoid_twin.twin.Twin`) into ``path``."""
+        return cls(path, twin.link, meta={"seed": twin.seed})
+
+    def _on_event(self, event: str, t_us: int, data: bytes, n: int) -> None:
+        if self._f is None:
+            return
+        if event in (TAP_TO_DEVICE, TAP_TO_HOST):
+            rec = Record(t_us, event, data=data, end_us=n)
+        else:
+            rec = Record(t_us, event, dropped=n)
+        self._f.write(rec.line() + "\n")
+        self.records += 1
+
+    def close(self) -> None:
+        """Stop logging and close the file (idempotent; safe from a signal handler's finally)."""
+        f, self._f = self._f, None
+        if f is None:
+            return
+        try:
+            self.link.remove_tap(self._on_event)
+        except ValueError:
+            pass
+        f.close()
+
+    def __enter__(self) -> SerialLog:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+def read_log(path: str | Path) -> tuple[dict[str, Any], list[Record]]:
+    """The header's meta and the records of a serial log; :class:`SerialLogError` if it is not one."""
+    try:
+        text = Path(path).read_text(encoding="ascii")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise SerialLogError(f"{path}: cannot read it as a serial log ({exc})") from None
+    lines = text.splitlines()
+    if not lines or lines[0] != MAGIC:
+        raise SerialLogError(f"{path}: not a serial log (its first line is not '{MAGIC}')")
+    return _meta(path, lines), list(_records(path, lines))
+
+
+def _meta(path: str | Path, lines: list[str]) -> dict[str, Any]:
+    for ln in lines:
+        if ln.startswith("# meta "):
+            try:
+                meta = json.loads(ln[len("# meta "):])
+            except json.JSONDecodeError as exc:
+                raise SerialLogError(f"{path}: its meta line is not JSON ({exc})") from None
+            if isinstance(meta, dict):
+                return meta
+    return {}
+
+
+def _records(path: str | Path, lines: list[str]) -> Iterator[Record]:
+    last = 0
+    for no, ln in enumerate(lines, 1):
+        if not ln or ln.startswith("#"):
+            continue
+        f = ln.split()
+        try:
+            t_us, event = int(f[0]), f[1]
+            if event not in _EVENTS or t_us < last:
+                raise ValueError("unknown event" if event not in _EVENTS else "time goes back")
+            if event in (TAP_TO_DEVICE, TAP_TO_HOST):
+                data = bytes(int(h, 16) for h in f[3:])
+                if not data or any(len(h) != 2 for h in f[3:]):
+                    raise ValueError("bytes are two hex digits each, at least one")
+                rec = Record(t_us, event, data=data, end_us=int(f[2]))
+            else:
+                if len(f) != 3:
+                    raise ValueError("a drop has one count")
+                rec = Record(t_us, event, dropped=int(f[2]))
+        except (ValueError, IndexError) as exc:
+            raise SerialLogError(f"{path}:{no}: not a serial-log line ({exc}): {ln[:80]!r}") from None
+        last = t_us
+        yield rec
+
+
+@dataclass
+class ReplayResult:
+    """What :func:`replay` found: the host bytes fed, the twin's answer bytes compared, and the
+    first difference (None when the twin answered as logged)."""
+
+    host_bytes: int
+    twin_bytes: int
+    difference: str | None
+
+
+def replay(path: str | Path, seed: int | None = None) -> ReplayResult:
+    """Feed the host->twin bytes of the log at their instants (the flushes and unplugs too) into a
+    fresh twin (seed: the log's, unless given) and compare its twin->host writes with the log's.
+    An unplug is a ``serve`` session's start or end, which also resets the Master's receiver
+    (``bus/bridges.py``): the replay does both."""
+    from humanoid_twin.twin import Twin
+
+    meta, records = read_log(path)
+    seed = int(meta.get("seed", 0)) if seed is None else seed
+    answers: list[Record] = []
+
+    def tap(event: str, t_us: int, data: bytes, n: int) -> None:
+        if event == TAP_TO_HOST:
+            answers.append(Record(t_us, event, data=data, end_us=n))
+
+    twin = Twin(seed=seed)
+    try:
+        twin.link.add_tap(tap)
+        host = 0
+        for rec in records:
+            if rec.event == TAP_TO_HOST:
+                continue
+            twin.advance_to(rec.t_us)
+            if rec.event == TAP_TO_DEVICE:
+                twin.link.host_write(rec.data)
+                host += len(rec.data)
+            elif rec.event == TAP_FLUSH:
+                twin.link.host_reset_output()
+            else:                # a serve client came or left: the cable and the Master's receiver
+                twin.link.unplug()
+                twin.master.usart.usartResetRxBuff()
+        end = max((max(r.t_us, r.end_us) for r in records), default=0)
+        twin.advance_to(end)
+    finally:
+        twin.close()
+    logged = [r for r in records if r.event == TAP_TO_HOST]
+    diff = None
+    for i, (want, got) in enumerate(zip(logged, answers, strict=False)):
+        if want != got:
+            diff = f"twin->host write {i + 1}: the log has '{want.line()}', the twin sent '{got.line()}'"
+            break
+    else:
+        if len(logged) != len(answers):
+            i = min(len(logged), len(answers))
+            extra = logged[i] if len(logged) > i else answers[i]
+            who = "the log has" if len(logged) > i else "the twin sent"
+            diff = (f"{len(logged)} twin->host writes in the log, {len(answers)} from the twin; "
+                    f"the first unmatched: {who} '{extra.line()}'")
+    return ReplayResult(host, sum(len(r.data) for r in answers), diff)
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(prog="python -m humanoid_twin.bus.serial_log",
+                                 description="Replay a serial log into a fresh twin and check its answers.")
+    sub = ap.add_subparsers(dest="cmd", required=True)
+    rp = sub.add_parser("replay", help="feed the log's host bytes to a fresh twin; compare its answers")
+    rp.add_argument("file", type=Path)
+    rp.add_argument("--seed", type=int, help="the twin's seed (default: the log's)")
+    args = ap.parse_args(argv)
+    try:
+        res = replay(args.file, seed=args.seed)
+    except SerialLogError as exc:
+        print(f"serial_log: error: {exc}", file=sys.stderr)
+        return 2
+    if res.difference is not None:
+        print(f"serial_log: {args.file}: the twin's answers differ: {res.difference}", file=sys.stderr)
+        return 1
+    print(f"{args.file}: replayed {res.host_bytes} host bytes; the twin's {res.twin_bytes} answer bytes "
+          "match the log")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
