@@ -38,6 +38,14 @@ SERVO_JOINTS: dict[int, tuple[str, str, str]] = {
 }
 # Boards that carry a force-sensing foot (SPECIAL sensors = 4 force sensors).
 FOOT_OF_SCU: dict[int, str] = {1: "r_foot", 2: "l_foot"}
+# The body board's special sensors (seed 000 section 4, readspecial: "gyroscope + inclinometer";
+# seed 002 slide 3): a 2-axis inclinometer and a 2-axis gyroscope on the trunk, read by its ADC
+# like the feet's force sensors, in this order (docs/firmware.md, "Trunk inertial sensors").
+IMU_SCU = 5
+IMU_SENSOR_NAMES: tuple[str, ...] = ("IncRoll", "IncPitch", "GyroRoll", "GyroPitch")
+IMU_ZERO_COUNT = 128            # 8-bit ADC count of 0 deg / 0 deg/s (mid-scale)
+IMU_INCL_DEG_PER_COUNT = 0.5    # inclinometer: +-64 deg full scale
+IMU_GYRO_DPS_PER_COUNT = 1.25   # gyroscope: +-160 deg/s full scale
 # The leg and hip boards (right leg, left leg, right hip, left hip): the legs the twin moves.
 LEG_SCUS: tuple[int, ...] = (1, 2, 3, 4)
 
