@@ -25,8 +25,10 @@ from typing import Any
 
 import numpy as np
 
+from humanoid_twin.board_report import BoardReport
 from humanoid_twin.clock import US_PER_S
 from humanoid_twin.controllers import load_host_controller, run_host_controller
+from humanoid_twin.cycles import DEFAULT_PIC_MHZ
 from humanoid_twin.faults import FaultInjector, FaultSpec
 from humanoid_twin.host import drivers
 from humanoid_twin.host.motion import exe_traj, power_on, send_gains
@@ -142,6 +144,8 @@ class RunOptions:
     # wall seconds the run may take (None: unbounded); beyond it the run ends with ScenarioError,
     # its files closed (``run --wall-timeout``, sweep's ``--timeout``)
     wall_timeout: float | None = None
+    # the Slave boards' PIC18 clock, MHz (``run --pic-mhz``; humanoid_twin/cycles.py)
+    pic_mhz: float = DEFAULT_PIC_MHZ
 
 
 _BALANCE_TYPES = (ControlType.REACTION_CONTROL, ControlType.BALANCE_CONTROL)
@@ -383,7 +387,7 @@ def run(opts: RunOptions, on_progress: Callable[[float, float | None], None] | N
     called once the twin is built, before anything is written (``run --viewer`` attaches there)."""
     spec = get_scenario(opts.scenario)
     twin = Twin(seed=opts.seed, can_interface=opts.can_interface, can_channel=opts.can_channel,
-                supervisor=opts.supervisor)
+                supervisor=opts.supervisor, pic_mhz=opts.pic_mhz)
     if on_twin is not None:
         on_twin(twin)
     sup = twin.master.supervisor
@@ -424,6 +428,7 @@ def run(opts: RunOptions, on_progress: Callable[[float, float | None], None] | N
         monitor = Monitor(twin)
         if opts.monitor:
             monitor.attach()
+        report = BoardReport(twin)
         if recorder is not None:
             rec_ = recorder
             injector.listeners.append(
@@ -513,6 +518,7 @@ def run(opts: RunOptions, on_progress: Callable[[float, float | None], None] | N
             "control_law": _law_label(twin, the_plan),
             "seed": opts.seed,
             "mode": sup.mode_name,
+            **report.summary(),
             "faults": [f.as_dict() for f in sup.faults],
             # the faults that started (one whose T0 lies beyond the run's end is listed apart)
             "injected": [s.as_dict() for s in opts.faults if _started(s, injector)],
@@ -609,6 +615,16 @@ SUMMARY_KEYS: dict[str, str] = {
     "seed": "the run's seed",
     "mode": "the Master supervisor's mode at the end (`ready`; `safe` or `estop`: exit code 3; "
             "docs/supervisor.md)",
+    "task_load_max": "`{\"slaves\": F, \"master\": F}`: the largest fraction of its 20 ms period "
+                     "any Slave's pass of the main loop used, its interrupts included, and the largest "
+                     "fraction of its 250 us slot the Master's timer interrupt used, at the boards' clock "
+                     "(`--pic-mhz`; the PIC18 cycle table, docs/firmware.md); above 1: the work overran",
+    "deadline_misses": "per board (`master`, `1`..`8`): the Slave's passes that set `deadlineError` (a pass "
+                       "past its 20 ms period, or a late start injected by `--fault deadline`), the "
+                       "Master's 250 us slots whose interrupt work overran",
+    "imu_tilt_error_rms_deg": "RMS difference between the trunk tilt the body board's inclinometer gives "
+                              "(`readspecial(H, 5)`, docs/firmware.md) and the true tilt, after each of "
+                              "that board's ticks once calibrated",
     "faults": "the faults the supervisor latched: name, node, time, detail each",
     "injected": "the `--fault` specs injected that started (docs/supervisor.md)",
     "injected_not_started": "only when some `--fault` starts beyond the run's end: those specs",

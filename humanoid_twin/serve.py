@@ -12,6 +12,7 @@ import time
 from collections.abc import Callable
 
 from humanoid_twin.clock import RealTimePacer
+from humanoid_twin.cycles import DEFAULT_PIC_MHZ
 from humanoid_twin.faults import FaultInjector, FaultSpec
 from humanoid_twin.master.supervisor import SupervisorConfig
 from humanoid_twin.twin import Twin
@@ -44,6 +45,7 @@ def serve(
     idle_timeout_s: float | None = DEFAULT_IDLE_TIMEOUT_S,
     log: Callable[[str], None] = _log,
     speed: float = 1.0,
+    pic_mhz: float = DEFAULT_PIC_MHZ,
 ) -> int:
     """Serve until ``should_stop()`` (or ``max_seconds`` of wall time); returns an exit code.
 
@@ -52,7 +54,8 @@ def serve(
     from humanoid_twin.bus.bridges import PtyBridge, TcpBridge
     from humanoid_twin.master.usart import FRAME_GAP_US, PROCESS_US
 
-    twin = Twin(seed=seed, can_interface=can_interface, can_channel=can_channel, supervisor=supervisor)
+    twin = Twin(seed=seed, can_interface=can_interface, can_channel=can_channel, supervisor=supervisor,
+                pic_mhz=pic_mhz)
     # Between two clients the line stays quiet longer than the Master's break-off gap and its
     # answer delay, and each client starts with the Master's receiver reset: no spliced frames,
     # no answer to somebody else's bytes.

@@ -30,6 +30,7 @@ from humanoid_twin.cli.argtypes import (
     tcp_port,
     wall_seconds,
 )
+from humanoid_twin.cycles import add_pic_option
 
 EXIT_USAGE = 2
 EXIT_SUPERVISOR = 3     # the run ended with the supervisor in safe or estop (docs/supervisor.md)
@@ -101,6 +102,7 @@ def _add_can_options(p: argparse.ArgumentParser) -> None:
                    help="python-can interface of the CAN wire (default humanoid_twin: the project's own, "
                    "frames in virtual time; socketcan needs --can-channel, e.g. vcan0, for candump)")
     p.add_argument("--can-channel", help="python-can channel (default: a fresh one; socketcan: vcan0)")
+    add_pic_option(p)       # the boards' clock: --pic-mhz (humanoid_twin/cycles.py)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -443,7 +445,7 @@ def _run(args: argparse.Namespace, controllers: dict, outputs: _Outputs, out_tmp
         control=args.control, tilt=args.tilt, seed=args.seed,
         progress=not args.no_progress, can_interface=args.can_interface, can_channel=args.can_channel,
         faults=tuple(args.fault), supervisor=supervisor_config(args),
-        wall_timeout=getattr(args, "wall_timeout", None),
+        wall_timeout=getattr(args, "wall_timeout", None), pic_mhz=args.pic_mhz,
     )
     bar = None
     if opts.progress:
@@ -564,7 +566,7 @@ def cmd_serve(args: argparse.Namespace) -> int:
                      can_interface=args.can_interface, can_channel=args.can_channel,
                      faults=tuple(args.fault), supervisor=supervisor_config(args),
                      should_stop=lambda: stop["signal"] is not None,
-                     idle_timeout_s=args.idle_timeout or None, speed=args.speed)
+                     idle_timeout_s=args.idle_timeout or None, speed=args.speed, pic_mhz=args.pic_mhz)
     except ServeError as exc:
         raise _usage_error(str(exc)) from None
     # ended by a signal: 130 (SIGINT) or 143 (SIGTERM), as run (issue 24; it was 0)
