@@ -12,7 +12,7 @@ from collections.abc import Sequence
 
 import rerun.blueprint as rrb
 
-from humanoid_twin.hardware import FOOT_OF_SCU, LEG_SCUS, N_SERVOS, SERVO_JOINTS
+from humanoid_twin.hardware import FOOT_OF_SCU, IMU_SCU, LEG_SCUS, N_SERVOS, SERVO_JOINTS
 from humanoid_twin.protocol.wire import SCUS
 from humanoid_twin.recording.paths import (
     CAN,
@@ -142,6 +142,16 @@ def default_blueprint(
                 contents=[f"{scu_path(s)}/status", f"{scu_path(s)}/deadline_violations"],
             )
             for s in scus
+        ],
+        *[
+            _plot(name=f"{scu_path(s).split('/')[1]}: task time per tick vs its 20 ms budget (ms)",
+                  origin=f"{scu_path(s)}/task_ms")
+            for s in scus
+        ],
+        *[
+            _plot(name=f"trunk {what.replace('_', ' ')}: body board sensor vs truth",
+                  origin=f"{scu_path(IMU_SCU)}/imu/{what}")
+            for what in ("roll", "pitch", "roll_rate", "pitch_rate") if IMU_SCU in scus
         ],
         grid_columns=2,
         name="Boards",
