@@ -13,8 +13,7 @@ from __future__ import annotations
 import math
 from typing import Any
 
-from humanoid_twin.hardware import IMU_SCU, PWM_PERIOD_US
-from humanoid_twin.plant.imu import tilt_deg, tilt_from_counts
+from humanoid_twin.hardware import IMU_SCU, PWM_PERIOD_US, imu_from_counts, tilt_from_roll_pitch
 
 __all__ = ["BoardReport"]
 
@@ -36,7 +35,8 @@ class BoardReport:
         if not board.calibrated:
             return
         roll, pitch, _, _ = self.twin.plant.trunk_attitude_deg()
-        d = tilt_from_counts(board.sensors.special) - tilt_deg(roll, pitch)
+        m_roll, m_pitch, _, _ = imu_from_counts(board.sensors.special)
+        d = tilt_from_roll_pitch(m_roll, m_pitch) - tilt_from_roll_pitch(roll, pitch)
         self._err_sq += d * d
         self._n += 1
 

@@ -14,7 +14,6 @@ import pytest
 from humanoid_twin import hardware
 from humanoid_twin.cycles import DEFAULT_PIC_MHZ, LAW, SLAVE, cycles_to_us, instructions_per_s
 from humanoid_twin.host import drivers
-from humanoid_twin.plant.imu import attitude_from_counts
 from humanoid_twin.protocol.canframes import unpack_sensors1, unpack_sensors2
 from humanoid_twin.protocol.wire import STATUS_DEADLINE
 from humanoid_twin.scenarios import RunOptions, boot, run, tilt_profile
@@ -173,7 +172,7 @@ def test_readspecial_of_the_body_board_gives_the_trunk_attitude():
         twin.run_for(2.5)
         r = drivers.readspecial(H, 5)
         assert r.error == 0
-        roll, pitch, wr, wp = attitude_from_counts(r.special)
+        roll, pitch, wr, wp = hardware.imu_from_counts(r.special)
         t_roll, t_pitch, _, _ = twin.plant.trunk_attitude_deg()
         assert abs(t_pitch) > 4                            # the robot leans with its platform
         assert abs(roll - t_roll) <= 1.0 and abs(pitch - t_pitch) <= 1.0, (r.special, t_roll, t_pitch)

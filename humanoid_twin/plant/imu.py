@@ -8,14 +8,13 @@ gives the trunk's attitude (roll about the trunk's x, forward; pitch about its y
 angles of the site), low-passed by its output filter (first order, ``INCL_BANDWIDTH_HZ``); the
 gyroscope its body rates about x and y (``GYRO_BANDWIDTH_HZ``). Each reading gets white noise of
 ``*_NOISE_COUNTS`` standard deviation (seeded by the plant's seed), is rounded to a count around
-``hardware.IMU_ZERO_COUNT`` and clamped to 0..255. :func:`attitude_from_counts` is the inverse a
+``hardware.IMU_ZERO_COUNT`` and clamped to 0..255. ``hardware.imu_from_counts`` is the inverse a
 host controller uses on ``readspecial(H, 5)``.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
 from typing import Any
 
 import mujoco
@@ -23,8 +22,7 @@ import numpy as np
 
 from humanoid_twin import hardware as hw
 
-__all__ = ["INCL_BANDWIDTH_HZ", "GYRO_BANDWIDTH_HZ", "INCL_NOISE_COUNTS", "GYRO_NOISE_COUNTS",
-           "TrunkImu", "attitude_from_counts", "tilt_from_counts", "tilt_deg"]
+__all__ = ["INCL_BANDWIDTH_HZ", "GYRO_BANDWIDTH_HZ", "INCL_NOISE_COUNTS", "GYRO_NOISE_COUNTS", "TrunkImu"]
 
 INCL_BANDWIDTH_HZ = 10.0        # the inclinometer's output filter (-3 dB)
 GYRO_BANDWIDTH_HZ = 40.0        # the gyroscope's output filter (-3 dB)
@@ -36,26 +34,6 @@ _SITE = "trunk_imu"
 def _count(x: float) -> int:
     v = hw.IMU_ZERO_COUNT + round(x)
     return 0 if v < 0 else 255 if v > 255 else v
-
-
-def attitude_from_counts(special: Sequence[int]) -> tuple[float, float, float, float]:
-    """``(roll deg, pitch deg, roll rate deg/s, pitch rate deg/s)`` from the body board's four
-    special values (``readspecial(H, 5)``, ``hardware.IMU_SENSOR_NAMES`` order)."""
-    z = hw.IMU_ZERO_COUNT
-    return ((special[0] - z) * hw.IMU_INCL_DEG_PER_COUNT, (special[1] - z) * hw.IMU_INCL_DEG_PER_COUNT,
-            (special[2] - z) * hw.IMU_GYRO_DPS_PER_COUNT, (special[3] - z) * hw.IMU_GYRO_DPS_PER_COUNT)
-
-
-def tilt_deg(roll_deg: float, pitch_deg: float) -> float:
-    """The angle between the trunk's z axis and the vertical, from its roll and pitch (ZYX)."""
-    c = math.cos(math.radians(roll_deg)) * math.cos(math.radians(pitch_deg))
-    return math.degrees(math.acos(max(-1.0, min(1.0, c))))
-
-
-def tilt_from_counts(special: Sequence[int]) -> float:
-    """The trunk's tilt (deg) the inclinometer says (the summary's ``imu_tilt_error_rms_deg``)."""
-    roll, pitch, _, _ = attitude_from_counts(special)
-    return tilt_deg(roll, pitch)
 
 
 class TrunkImu:
