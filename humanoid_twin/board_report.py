@@ -19,14 +19,16 @@ __all__ = ["BoardReport"]
 
 
 class BoardReport:
-    """``BoardReport(twin)``: attaches the IMU comparison; :meth:`summary` gives the three keys."""
+    """``BoardReport(twin, imu=True)``: attaches the IMU comparison (``imu``: off, the key is
+    None, as the monitor's are, for scripts/bench.py); :meth:`summary` gives the three keys."""
 
-    def __init__(self, twin: Any) -> None:
+    def __init__(self, twin: Any, imu: bool = True) -> None:
         self.twin = twin
         self._err_sq = 0.0
         self._n = 0
-        board = twin.slaves[IMU_SCU]
-        twin.every(PWM_PERIOD_US, self.compare_imu, board.next_tick_us())
+        if imu:
+            board = twin.slaves[IMU_SCU]
+            twin.every(PWM_PERIOD_US, self.compare_imu, board.next_tick_us())
 
     def compare_imu(self) -> None:
         """Right after the body board's tick: the trunk tilt its inclinometer gives (its sensor

@@ -428,7 +428,7 @@ def run(opts: RunOptions, on_progress: Callable[[float, float | None], None] | N
         monitor = Monitor(twin)
         if opts.monitor:
             monitor.attach()
-        report = BoardReport(twin)
+        report = BoardReport(twin, imu=opts.monitor)
         if recorder is not None:
             rec_ = recorder
             injector.listeners.append(

@@ -29,6 +29,7 @@ GYRO_BANDWIDTH_HZ = 40.0        # the gyroscope's output filter (-3 dB)
 INCL_NOISE_COUNTS = 0.5         # standard deviation, counts (0.25 deg)
 GYRO_NOISE_COUNTS = 1.0         # standard deviation, counts (1.25 deg/s)
 _SITE = "trunk_imu"
+_NOISE_BLOCK = 4096
 
 
 def _count(x: float) -> int:
@@ -55,6 +56,7 @@ class TrunkImu:
     def reset(self) -> None:
         """Noise restarted, filters empty (the next read starts them at the input)."""
         self._rng = np.random.default_rng(self._seed)
+        self._noise: list[float] = []
         self._state: list[float] | None = None
         self._t_us = 0
 
@@ -79,7 +81,10 @@ class TrunkImu:
             for k, a in enumerate((a_i, a_i, a_g, a_g)):
                 s[k] += a * (x[k] - s[k])
         self._t_us = t_us
-        n = self._rng.normal(0.0, 1.0, 4)
+        noise = self._noise
+        if len(noise) < 4:          # standard normal draws, a block at a time
+            noise.extend(self._rng.normal(0.0, 1.0, _NOISE_BLOCK).tolist())
+        n = (noise.pop(), noise.pop(), noise.pop(), noise.pop())
         return [_count(s[0] / hw.IMU_INCL_DEG_PER_COUNT + INCL_NOISE_COUNTS * n[0]),
                 _count(s[1] / hw.IMU_INCL_DEG_PER_COUNT + INCL_NOISE_COUNTS * n[1]),
                 _count(s[2] / hw.IMU_GYRO_DPS_PER_COUNT + GYRO_NOISE_COUNTS * n[2]),
