@@ -180,3 +180,12 @@ def test_readspecial_of_the_body_board_gives_the_trunk_attitude():
         assert list(r.special) == twin.master.db.sensors[5].special    # the Master's copy, from CAN
         board = twin.slaves[5]
         assert list(unpack_sensors2(board.can.payload[1])[3]) == board.sensors.special
+
+
+@pytest.mark.parametrize("value", ["0", "41", "nan", "fast"])
+def test_a_bad_clock_is_a_usage_error(tmp_path, value):
+    """--pic-mhz outside what a PIC18F258 runs at (0.032..40 MHz): one line, exit 2, nothing written."""
+    p = subprocess.run([sys.executable, "-m", "humanoid_twin.cli.main", "run", "stand", "--pic-mhz", value,
+                        "--out", str(tmp_path / "r.rrd")], capture_output=True, text=True, timeout=60)
+    assert p.returncode == 2 and "--pic-mhz" in p.stderr and len(p.stderr.strip().splitlines()) == 1
+    assert not list(tmp_path.iterdir())
