@@ -416,8 +416,8 @@ def install_laws(twin: Any, laws: Mapping[int | str, Any] | Iterable[tuple[int |
     from humanoid_twin.containment import describe, user_fault
     from humanoid_twin.cycles import law_cycles, note_default_cost
 
+    first: list[tuple[Any, int]] = []       # one instance per type: its cost said once, at the end
     for ctype, factory in resolve_laws(laws).items():
-        noted = False
         for slave in twin.slaves.values():
             try:
                 law = factory()
@@ -433,7 +433,7 @@ def install_laws(twin: Any, laws: Mapping[int | str, Any] | Iterable[tuple[int |
                     raise
                 name = getattr(factory, "__qualname__", "?")
                 raise LawError(f"law {name!s:.80}: {describe(exc)}") from None
-            if not noted:
-                noted = True
-                note_default_cost(law, ctype)
             slave.servo.set_law(ctype, law)
+        first.append((law, ctype))
+    for law, ctype in first:
+        note_default_cost(law, ctype)

@@ -62,6 +62,7 @@ cdef class Slave:
     cdef public long long ticks_skipped
     cdef public bint _outputs_due
     cdef public bint _overran
+    cdef public bint _pass_late
     cdef public object _finish_cb
     cdef public long long _due_us
     cdef public long long _delay_us
