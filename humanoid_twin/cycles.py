@@ -3,7 +3,7 @@
 Every firmware function, interrupt and built-in control law of the twin charges the PIC18
 instruction cycles its C code takes on the real board, from this one table; the board's clock
 (``--pic-mhz``) turns cycles into virtual time (4 clock periods per instruction cycle, PIC18F258
-datasheet DS41159 section 5.2). A Slave's 20 ms pass of its main loop then takes the time it took
+datasheet DS41159, "Instruction cycle"). A Slave's 20 ms pass of its main loop then takes the time it took
 on the robot: past its period it sets ``deadlineError`` and skips the tick it missed; the
 Master's 250 us timer interrupt past its slot delays the CAN schedule (docs/firmware.md,
 docs/master.md). How each figure was estimated is in docs/firmware.md next to the table.
@@ -34,10 +34,10 @@ __all__ = [
 ]
 
 # The robot's crystal: no seed names it; the PIC18F258's top speed, 10 MHz crystal x4 PLL
-# (HS-PLL) = 40 MHz, 10 MIPS (DS41159 section 2 and table 27-7), which the ISR latency of the
+# (HS-PLL) = 40 MHz, 10 MIPS (DS41159, "Oscillator configurations", HS-PLL), which the ISR latency of the
 # Slaves' CAN answers (20 us, docs/firmware.md) already assumed.
 DEFAULT_PIC_MHZ = 40.0
-CLOCKS_PER_CYCLE = 4          # Fosc/4: one instruction cycle (DS41159 section 5.2)
+CLOCKS_PER_CYCLE = 4          # Fosc/4: one instruction cycle (DS41159, "Instruction cycle")
 PIC_MHZ_MIN = 0.032           # the 32 kHz Timer1 oscillator, the slowest clock a PIC18 runs on
 PIC_MHZ_MAX = 40.0            # DS41159: Fosc max 40 MHz
 
