@@ -9,6 +9,9 @@ docs/model.md and docs/firmware.md.
 
 from __future__ import annotations
 
+import math
+from collections.abc import Sequence
+
 # --- boards (addresses 1..8 and their range check: protocol/wire.py) -------------------------
 SCU_NAMES: dict[int, str] = {
     1: "right_leg",
@@ -38,6 +41,30 @@ SERVO_JOINTS: dict[int, tuple[str, str, str]] = {
 }
 # Boards that carry a force-sensing foot (SPECIAL sensors = 4 force sensors).
 FOOT_OF_SCU: dict[int, str] = {1: "r_foot", 2: "l_foot"}
+# The body board's special sensors (seed 000 section 4, readspecial: "gyroscope + inclinometer";
+# seed 002 slide 3): a 2-axis inclinometer and a 2-axis gyroscope on the trunk, read by its ADC
+# like the feet's force sensors, in this order (docs/firmware.md, "Trunk inertial sensors").
+IMU_SCU = 5
+IMU_SENSOR_NAMES: tuple[str, ...] = ("IncRoll", "IncPitch", "GyroRoll", "GyroPitch")
+IMU_ZERO_COUNT = 128            # 8-bit ADC count of 0 deg / 0 deg/s (mid-scale)
+IMU_INCL_DEG_PER_COUNT = 0.5    # inclinometer: +-64 deg full scale
+IMU_GYRO_DPS_PER_COUNT = 1.25   # gyroscope: +-160 deg/s full scale
+
+
+def imu_from_counts(special: Sequence[int]) -> tuple[float, float, float, float]:
+    """``(roll deg, pitch deg, roll rate deg/s, pitch rate deg/s)`` from the body board's four
+    special values (``readspecial(H, 5)``, :data:`IMU_SENSOR_NAMES` order): roll about the trunk's
+    x (forward), pitch about its y (left)."""
+    z = IMU_ZERO_COUNT
+    return ((special[0] - z) * IMU_INCL_DEG_PER_COUNT, (special[1] - z) * IMU_INCL_DEG_PER_COUNT,
+            (special[2] - z) * IMU_GYRO_DPS_PER_COUNT, (special[3] - z) * IMU_GYRO_DPS_PER_COUNT)
+
+
+def tilt_from_roll_pitch(roll_deg: float, pitch_deg: float) -> float:
+    """The angle (deg) between the trunk's z axis and the vertical, from its roll and pitch (ZYX)."""
+    c = math.cos(math.radians(roll_deg)) * math.cos(math.radians(pitch_deg))
+    return math.degrees(math.acos(max(-1.0, min(1.0, c))))
+
 # The leg and hip boards (right leg, left leg, right hip, left hip): the legs the twin moves.
 LEG_SCUS: tuple[int, ...] = (1, 2, 3, 4)
 

@@ -7,7 +7,7 @@ A rig is the :class:`~humanoid_twin.twin.Twin` and what a run puts on it, always
    viewer attaches there);
 2. the firmware laws (``--law``) on every Slave;
 3. the rerun recorder (``--out FILE.rrd``), then the CAN log (``--can-log FILE``);
-4. the ground-truth monitor;
+4. the ground-truth monitor, then the boards' report (task load, deadline misses, the IMU);
 5. the faults (``--fault``), their start and end told to the recording;
 6. the progress hook (every 0.1 s of virtual time).
 
@@ -30,6 +30,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from humanoid_twin.board_report import BoardReport
+from humanoid_twin.cycles import DEFAULT_PIC_MHZ
 from humanoid_twin.faults import FaultInjector, FaultSpec
 from humanoid_twin.host import drivers
 from humanoid_twin.host.motion import power_on
@@ -63,6 +65,8 @@ class RigOptions:
     # humanoid_twin/controllers.py, docs/controllers.md
     laws: tuple[tuple[int | str, Any], ...] = ()
     tilt: float = 0.0
+    # the Slave boards' PIC18 clock, MHz (``--pic-mhz``; the cycle table: humanoid_twin/cycles.py)
+    pic_mhz: float = DEFAULT_PIC_MHZ
     # the outputs: a rerun recording (.rrd) and a CAN log (format by suffix); ``can_log_name``:
     # the log's final file name, when ``can_log`` is a temporary one
     out: Path | None = None
@@ -122,7 +126,8 @@ class Rig:
     is written. ``on_progress(t_s, end_s)``: every 0.1 s of virtual time (``end_s``: :attr:`end_s`,
     None until the run's end is known).
 
-    Attributes: ``twin``, ``monitor`` (attached when ``opts.monitor``), ``injector``,
+    Attributes: ``twin``, ``monitor`` (attached when ``opts.monitor``), ``report`` (the boards'
+    task load, deadline misses and IMU error: humanoid_twin/board_report.py), ``injector``,
     ``recorder`` and ``canlog`` (None when not asked for), ``H`` (the host's port once
     :meth:`boot` ran), ``boot_s``, ``host_error`` (a request that failed while the run went on),
     ``end_s``.
@@ -140,7 +145,7 @@ class Rig:
         self.host_error: str | None = None
         self.end_s: float | None = None
         self.twin = Twin(seed=opts.seed, can_interface=opts.can_interface, can_channel=opts.can_channel,
-                         supervisor=opts.supervisor)
+                         supervisor=opts.supervisor, pic_mhz=opts.pic_mhz)
         try:
             self._assemble(opts, expected_s, on_twin, on_progress)
         except BaseException:
@@ -166,6 +171,7 @@ class Rig:
         self.monitor = Monitor(twin)
         if opts.monitor:
             self.monitor.attach()
+        self.report = BoardReport(twin, imu=opts.monitor)     # task load, deadline misses, the IMU
         if self.recorder is not None:
             rec = self.recorder
             self.injector.listeners.append(

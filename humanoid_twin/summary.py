@@ -51,6 +51,7 @@ def build_summary(rig: Rig, scenario: str, plan: Plan, *, completed: bool, wall_
         "control_law": _law_label(twin, plan),
         "seed": opts.seed,
         "mode": sup.mode_name,
+        **rig.report.summary(),
         "faults": [f.as_dict() for f in sup.faults],
         # the faults that started (one whose T0 lies beyond the run's end is listed apart)
         "injected": [s.as_dict() for s in started],
@@ -130,6 +131,16 @@ SUMMARY_KEYS: dict[str, str] = {
     "seed": "the run's seed",
     "mode": "the Master supervisor's mode at the end (`ready`; `safe` or `estop`: exit code 3; "
             "docs/supervisor.md)",
+    "task_load_max": "`{\"slaves\": F, \"master\": F}`: the largest fraction of its 20 ms period "
+                     "any Slave's pass of the main loop used, its interrupts included, and the largest "
+                     "fraction of its 250 us slot the Master's timer interrupt used, at the boards' clock "
+                     "(`--pic-mhz`; the PIC18 cycle table, docs/firmware.md); above 1: the work overran",
+    "deadline_misses": "per board (`master`, `1`..`8`): the Slave's passes that set `deadlineError` (a pass "
+                       "past its 20 ms period, or a late start injected by `--fault deadline`), the "
+                       "Master's 250 us slots whose interrupt work overran",
+    "imu_tilt_error_rms_deg": "RMS difference between the trunk tilt the body board's inclinometer gives "
+                              "(`readspecial(H, 5)`, docs/firmware.md) and the true tilt, after each of "
+                              "that board's ticks once calibrated",
     "faults": "the faults the supervisor latched: name, node, time, detail each",
     "injected": "the `--fault` specs injected that started (docs/supervisor.md)",
     "injected_not_started": "only when some `--fault` starts beyond the run's end: those specs",

@@ -19,6 +19,7 @@ from humanoid_twin.bus.network import CanNetwork
 from humanoid_twin.bus.protocol_twin import register_link, unregister_link
 from humanoid_twin.bus.serial_link import SerialLink
 from humanoid_twin.clock import US_PER_S, Clock, RealTimePacer
+from humanoid_twin.cycles import DEFAULT_PIC_MHZ
 from humanoid_twin.hardware import PWM_PERIOD_US
 from humanoid_twin.master.master import Master
 from humanoid_twin.master.supervisor import SupervisorConfig
@@ -41,8 +42,10 @@ class Twin:
         can_channel: str | None = None,
         name: str | None = None,
         supervisor: SupervisorConfig | None = None,
+        pic_mhz: float = DEFAULT_PIC_MHZ,
     ) -> None:
         self.seed = seed
+        self.pic_mhz = pic_mhz          # the Slaves' clock (the Master's: DEFAULT_PIC_MHZ, docs/firmware.md)
         self.clock = Clock()
         # physics time is the clock's: the plant steps itself before any read or write
         self.plant = Plant(model_path, seed=seed, clock=self.clock)
@@ -53,7 +56,8 @@ class Twin:
         # period at its own phase, drawn from the seed (docs/firmware.md).
         self.phases_us: dict[int, int] = dict(zip(SCUS, _phases(seed), strict=True))
         self.slaves: dict[int, Slave] = {
-            scu: Slave(scu, self.clock, self.plant, self.network, phase_us=self.phases_us[scu])
+            scu: Slave(scu, self.clock, self.plant, self.network, phase_us=self.phases_us[scu],
+                       pic_mhz=pic_mhz)
             for scu in SCUS
         }
         self.name = name or f"twin{next(_names)}"

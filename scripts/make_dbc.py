@@ -24,7 +24,16 @@ REPO = Path(__file__).resolve().parents[1]
 if str(REPO) not in sys.path:  # generate from this checkout, installed or not
     sys.path.insert(0, str(REPO))
 
-from humanoid_twin.hardware import FORCE_SENSOR_LABELS, FORCE_SENSOR_NAMES, SCU_NAMES  # noqa: E402
+from humanoid_twin.hardware import (  # noqa: E402
+    FORCE_SENSOR_LABELS,
+    FORCE_SENSOR_NAMES,
+    IMU_GYRO_DPS_PER_COUNT,
+    IMU_INCL_DEG_PER_COUNT,
+    IMU_SCU,
+    IMU_SENSOR_NAMES,
+    IMU_ZERO_COUNT,
+    SCU_NAMES,
+)
 from humanoid_twin.protocol import canframes as cf  # noqa: E402
 from humanoid_twin.protocol import wire  # noqa: E402
 from humanoid_twin.protocol.wire import SCUS, ControlType, ErrorState  # noqa: E402
@@ -64,19 +73,22 @@ def _sig(
     choices: OrderedDict | None = None,
     comment: str | None = None,
     receiver: str,
+    scale: float = 1,
+    offset: float = 0,
 ) -> Signal:
-    """A signal of ``length`` bits starting at bit ``bit`` of payload byte ``byte`` (0-based)."""
+    """A signal of ``length`` bits starting at bit ``bit`` of payload byte ``byte`` (0-based);
+    physical value = ``scale * raw + offset``."""
     if minimum is None:
-        minimum = -(1 << (length - 1)) if signed else 0
+        minimum = scale * (-(1 << (length - 1)) if signed else 0) + offset
     if maximum is None:
-        maximum = (1 << (length - 1)) - 1 if signed else (1 << length) - 1
+        maximum = scale * ((1 << (length - 1)) - 1 if signed else (1 << length) - 1) + offset
     return Signal(
         name=name,
         start=8 * byte + bit,
         length=length,
         byte_order="little_endian",
         is_signed=signed,
-        conversion=conversion.BaseConversion.factory(scale=1, offset=0, choices=choices),
+        conversion=conversion.BaseConversion.factory(scale=scale, offset=offset, choices=choices),
         minimum=minimum,
         maximum=maximum,
         unit=unit,
@@ -106,6 +118,21 @@ def _sflags1_supervisor() -> list[Signal]:
              maximum=int(ErrorState.BUS_OFF), choices=CAN_STATE_CHOICES,
              comment="SFlags bits 1-0: the Slave's CAN error state since its last tick"),
     ]
+
+
+def _imu_signals() -> list[Signal]:
+    """Sensors 2 Data1..4 of the body board: its inclinometer and gyroscope (docs/firmware.md,
+    "Trunk inertial sensors"), physical units from the 8-bit counts (hardware.py)."""
+    out = []
+    for i, name in enumerate(IMU_SENSOR_NAMES):
+        incl = i < 2
+        scale = IMU_INCL_DEG_PER_COUNT if incl else IMU_GYRO_DPS_PER_COUNT
+        axis = "roll (about the trunk's x, forward)" if i % 2 == 0 else "pitch (about the trunk's y, left)"
+        what = "inclinometer" if incl else "gyroscope"
+        out.append(_sig(name, 4 + i, unit="deg" if incl else "deg/s", receiver="MASTER", scale=scale,
+                        offset=-IMU_ZERO_COUNT * scale,
+                        comment=f"Data{i + 1}: trunk {what}, {axis}; 8-bit ADC count, {IMU_ZERO_COUNT} = 0"))
+    return out
 
 
 def messages_for(k: int) -> list[Message]:
@@ -219,12 +246,12 @@ def messages_for(k: int) -> list[Message]:
             )
             for i in (1, 2, 3)
         ),
-        *(
+        *(_imu_signals() if k == IMU_SCU else (
             _sig(name, 4 + i, unit="count", receiver="MASTER",
                  comment=f"Data{i + 1}: {where} foot force sensor (seed 000 table 12), 8-bit ADC counts; "
                  "0 on boards without a foot")
             for i, (name, where) in enumerate(FORCE_NAMES.items())
-        ),
+        )),
     ]
     a1, a2 = cf.ACTUATION_IDS[k]
     s1, s2 = cf.SENSOR_IDS[k]

@@ -13,6 +13,13 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
+from humanoid_twin.hardware import (
+    IMU_GYRO_DPS_PER_COUNT,
+    IMU_INCL_DEG_PER_COUNT,
+    IMU_SCU,
+    IMU_SENSOR_NAMES,
+    IMU_ZERO_COUNT,
+)
 from humanoid_twin.protocol import canframes as cf
 from humanoid_twin.protocol import rs232
 from humanoid_twin.protocol.canframes import PayloadError
@@ -554,7 +561,12 @@ def test_dbc_decodes_sensors2(db, k, curr, data4, law_stopped) -> None:
     sig = db.decode_message(cf.SENSOR_IDS[k][1], data)
     assert (sig["SFlagsSource"], sig["SFlagsIndex"], sig["LawStopped"]) == (k, 1, law_stopped)
     assert [sig[f"Curr{i}"] for i in (1, 2, 3)] == list(curr)
-    assert [sig[name] for name in ("FL", "FR", "RL", "RR")] == list(data4)   # table 12 order
+    if k == IMU_SCU:     # the body board: inclinometer and gyroscope, in physical units
+        scales = (IMU_INCL_DEG_PER_COUNT,) * 2 + (IMU_GYRO_DPS_PER_COUNT,) * 2
+        assert [sig[name] for name in IMU_SENSOR_NAMES] == [
+            (d - IMU_ZERO_COUNT) * sc for d, sc in zip(data4, scales, strict=True)]
+    else:
+        assert [sig[name] for name in ("FL", "FR", "RL", "RR")] == list(data4)   # table 12 order
     assert db.encode_message(cf.SENSOR_IDS[k][1], sig) == data
 
 

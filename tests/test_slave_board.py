@@ -200,7 +200,9 @@ def test_force_sensors_read_128_at_the_calibration_load_and_the_cop_matches_grou
         assert abs(s.cop_x - gt[0]) <= 2.0 and abs(s.cop_y - gt[1]) <= 2.0, ((s.cop_x, s.cop_y), gt)
         _, _, _, data4 = unpack_sensors2(bytes([m for _, i, m in rig.rec.sensors_from(k) if i == 1][-1].data))
         assert list(data4) == s.sensors.special
-    assert rig.slaves[5].sensors.special == [128] * 4               # no foot: offset 128 - 0
+    assert rig.slaves[6].sensors.special == [128] * 4               # no foot: offset 128 - 0
+    # the body board's specials are its inclinometer and gyroscope: level and still, mid-scale
+    assert all(abs(v - hardware.IMU_ZERO_COUNT) <= 2 for v in rig.slaves[5].sensors.special)
 
 
 def test_firmware_leg_kinematics_agree_with_the_model():

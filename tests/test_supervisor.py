@@ -154,8 +154,9 @@ def test_serve_fault_a_client_sees_the_supervisor_refuse_the_boot(serve) -> None
 # reference log of `humanoid-twin run flexao --seed 0 --can-log flexao_s0.asc`, made before this
 # work. Compared: the .asc body after its 2-line header (the first line is the date), each line's
 # tokens without the channel number (a process-wide counter, not the run's). The supervisor adds
-# nothing on the bus (docs/supervisor.md).
-FLEXAO_S0_ASC_SHA256 = "5b0e9b4f06a5a3df0ed6e80d12e78fd44509c90199ae950c1f5a1de8fe3a22cd"
+# nothing on the bus (docs/supervisor.md). Renewed by issue 26: the body board's Sensors 2 bytes
+# now carry its inclinometer and gyroscope (the only change of the log: tests/test_golden.py).
+FLEXAO_S0_ASC_SHA256 = "6ea13b12184e011d7eb0ba1da4079301b3ffdcaa27bf0b5441395dff1e432c99"
 
 
 def _asc_digest(data: bytes) -> str:

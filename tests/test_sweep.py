@@ -55,8 +55,8 @@ def test_grid_rows_equal_single_runs(two_jobs):
         for key, value in summary.items():
             if key in TIMING_COLUMNS:
                 continue
-            cell = "" if value is None else json.dumps(value, sort_keys=True) if isinstance(value, list) \
-                else str(value)
+            cell = "" if value is None else json.dumps(value, sort_keys=True) \
+                if isinstance(value, list | dict) else str(value)
             assert r[key] == cell, (key, r[key], value)
     # the seeds are different runs (sensor noise): the table is not one run copied four times
     assert rows[0]["cop_error_rms_mm"] != rows[1]["cop_error_rms_mm"]

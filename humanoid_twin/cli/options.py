@@ -49,6 +49,22 @@ def add_can_options(p: argparse.ArgumentParser) -> None:
                    help="python-can interface of the CAN wire (default humanoid_twin: the project's own, "
                    "frames in virtual time; socketcan needs --can-channel, e.g. vcan0, for candump)")
     p.add_argument("--can-channel", help="python-can channel (default: a fresh one; socketcan: vcan0)")
+    add_pic_option(p)       # the boards' clock: --pic-mhz (humanoid_twin/cycles.py)
+
+
+def add_pic_option(p: argparse.ArgumentParser) -> None:
+    """``--pic-mhz F`` on ``run`` and ``serve`` (and so a ``sweep --param``)."""
+    from humanoid_twin.cycles import DEFAULT_PIC_MHZ, check_pic_mhz
+
+    def pic_mhz(text: str) -> float:
+        try:
+            return check_pic_mhz(float(text))
+        except ValueError as exc:
+            raise argparse.ArgumentTypeError(str(exc)) from None
+
+    p.add_argument("--pic-mhz", type=pic_mhz, default=DEFAULT_PIC_MHZ, metavar="F",
+                   help=f"the Slave boards' PIC18 clock in MHz (default {DEFAULT_PIC_MHZ:g}: 10 MIPS; "
+                   "docs/firmware.md, cycle budget)")
 
 
 def add_rig_options(p: argparse.ArgumentParser, out_help: str) -> None:
@@ -189,7 +205,7 @@ def rig_fields(args: argparse.Namespace, controllers: dict[str, Any]) -> dict[st
 
     return dict(seed=args.seed, tilt=args.tilt, can_interface=args.can_interface,
                 can_channel=args.can_channel, faults=tuple(args.fault), supervisor=supervisor_config(args),
-                laws=controllers["laws"])
+                laws=controllers["laws"], pic_mhz=args.pic_mhz)
 
 
 def run_options(args: argparse.Namespace, controllers: dict[str, Any], out: Path | None,

@@ -568,7 +568,8 @@ def readjoint(H: Any, scu_id: int, param: int, *, max_tries: int = DEFAULT_MAX_T
 
 def readspecial(H: Any, scu_id: int, *, max_tries: int = DEFAULT_MAX_TRIES) -> ReadSpecialResult:
     """``[special, rx, error, errorstr, tries] = readspecial(H, scu_id)``: the 4 force sensors
-    (front-left, front-right, rear-left, rear-right; 8-bit, 128 = the calibration load)."""
+    (front-left, front-right, rear-left, rear-right; 8-bit, 128 = the calibration load); on the
+    body board (5) its inclinometer and gyroscope, 128 = zero (``hardware.imu_from_counts``)."""
     frame = encode_request(Op.READ_SENSORS, _scu(scu_id), PARAM_SPECIAL)
     rx, err, text, tries = _exchange(H, frame, _EXPECT_DATA, max_tries)
     if err != ErrorCode.OK:

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
+from humanoid_twin.cycles import DEFAULT_PIC_MHZ
 from humanoid_twin.master.can import MasterCan
 from humanoid_twin.master.database import Database
 from humanoid_twin.master.pic import Pic
@@ -30,7 +31,7 @@ class Master:
     """
 
     def __init__(self, clock: Clock, network: CanNetwork, link: SerialLink,
-                 supervisor: SupervisorConfig | None = None) -> None:
+                 supervisor: SupervisorConfig | None = None, pic_mhz: float = DEFAULT_PIC_MHZ) -> None:
         self.clock = clock
         self.network = network
         self.link = link
@@ -39,7 +40,7 @@ class Master:
         # the mode supervisor (docs/supervisor.md), beyond the seeds
         self.supervisor = Supervisor(clock, self.db, self.can, supervisor)
         self.usart = Usart(clock, link, self.db, self.can, self.supervisor)
-        self.pic = Pic(clock, self.usart, self.can, self.db, self.supervisor)
+        self.pic = Pic(clock, self.usart, self.can, self.db, self.supervisor, pic_mhz)
         self.main()
 
     def main(self) -> None:

@@ -6,6 +6,11 @@ from humanoid_twin.master.can cimport MasterCan
 from humanoid_twin.master.database cimport Database
 
 cdef long long N_SCU   # a C value here (ROUND_US and the other periods stay Python names)
+cdef long long _SLOT_US
+cdef long long _C_TIMER_TX
+cdef long long _C_TIMER_RX
+cdef long long _C_CAN_RX
+cdef long long _C_USART
 from humanoid_twin.master.usart cimport Usart
 
 
@@ -20,9 +25,20 @@ cdef class Pic:
     cdef public long long slave
     cdef public long long started_us
     cdef public bint _round_open
+    cdef public long long ips
+    cdef public long long isr_cycles
+    cdef public long long busy_until_us
+    cdef public double slot_load_max
+    cdef public long long slot_overruns
+    cdef public long long slots_lost
+    cdef public bint _timer_pending
+    cdef public object _late_cb
 
     cpdef initPic(self)
     cpdef isr_usart_rx(self, long long byte)
     cpdef isr_can_rx(self, object msg)
-    @cython.locals(slot=cython.longlong)
+    @cython.locals(now=cython.longlong)
     cpdef isr_timer(self)
+    cpdef _isr_timer_late(self)
+    @cython.locals(slot=cython.longlong, cycles=cython.longlong, us=cython.longlong, load=cython.double)
+    cpdef _timer_slot(self, long long now)

@@ -21,12 +21,18 @@ the Master's only running code, split here into its interrupt paths:
   1 ms per slave, 8 ms per round for slaves 1..8. A round is closed (``answered_mask``,
   ``rounds``) at the first tick of the next round, so that the answer to slave 8's actuation 2
   (which may end after slot 3's tick) still counts for its round.
+
+Each interrupt takes the cycles of humanoid_twin/cycles.py at the board's clock: the timer
+interrupt's slot work plus the RX interrupts (USART bytes, CAN packets) since the slot before.
+A timer interrupt that comes while that work still runs is served when it ends (its flag stays
+set); one more that comes meanwhile is lost: the schedule slips (docs/master.md, "Cycle budget").
 """
 
 from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
+from humanoid_twin.cycles import DEFAULT_PIC_MHZ, MASTER, check_pic_mhz, cycles_to_us, instructions_per_s
 from humanoid_twin.protocol.wire import N_SCU
 
 if TYPE_CHECKING:
@@ -42,14 +48,27 @@ TIMER_PERIOD_US = 250                              # slide 27
 SLOTS_PER_SLAVE = 4
 SLAVE_PERIOD_US = TIMER_PERIOD_US * SLOTS_PER_SLAVE  # 1 ms per slave
 ROUND_US = SLAVE_PERIOD_US * N_SCU                 # 8 ms per round
+_SLOT_US = TIMER_PERIOD_US
+_C_TIMER_TX = MASTER["timer_tx"]
+_C_TIMER_RX = MASTER["timer_rx"]
+_C_CAN_RX = MASTER["can_rx"]
+_C_USART = MASTER["usart_byte"]
 
 
 class Pic:
     """The Master's PIC18F258: initialisation and interrupt service (table 1)."""
 
     def __init__(self, clock: Clock, usart: Usart, can: MasterCan, db: Database,
-                 supervisor: Supervisor | None = None) -> None:
+                 supervisor: Supervisor | None = None, pic_mhz: float = DEFAULT_PIC_MHZ) -> None:
         self.clock = clock
+        self.ips = instructions_per_s(check_pic_mhz(pic_mhz))
+        self.isr_cycles = 0          # RX interrupts' cycles since the last timer interrupt
+        self.busy_until_us = -1      # the end of the timer interrupt's work in progress
+        self.slot_load_max = 0.0     # the largest fraction of a 250 us slot the work took
+        self.slot_overruns = 0       # slots whose work took more than 250 us
+        self.slots_lost = 0          # timer interrupts lost to an overrun
+        self._timer_pending = False
+        self._late_cb = self._isr_timer_late
         self.supervisor = supervisor
         self.usart = usart
         self.can = can
@@ -73,16 +92,44 @@ class Pic:
     # --- isr (table 1), by interrupt source ------------------------------------------------
     def isr_usart_rx(self, byte: int) -> None:
         """``isr``, USART RX interrupt (RCIF, fig. 2): one byte from the host."""
+        self.isr_cycles += _C_USART
         self.usart.rx_byte(byte)
 
     def isr_can_rx(self, msg: can.Message) -> None:
         """``isr``, CAN RX interrupt (RXB0IF/RXB1IF, slide 30): a sensor packet into the database."""
+        self.isr_cycles += _C_CAN_RX
         self.can.drivers.rx_interrupt(msg)
         self.can.canReceiveMsg()
 
     def isr_timer(self) -> None:
-        """``isr``, timer interrupt every 250 us (fig. 4, slide 27): one slot of the CAN schedule."""
+        """``isr``, timer interrupt every 250 us (fig. 4, slide 27): one slot of the CAN schedule
+        (served when the work before it ends, if it comes while that still runs)."""
+        now = self.clock.now_us
+        if now < self.busy_until_us:
+            if self._timer_pending:
+                self.slots_lost += 1
+            else:
+                self._timer_pending = True
+                self.clock.schedule(self.busy_until_us, self._late_cb)
+            return
+        self._timer_slot(now)
+
+    def _isr_timer_late(self) -> None:
+        self._timer_pending = False
+        self._timer_slot(self.clock.now_us)
+
+    def _timer_slot(self, now: int) -> None:
+        """One slot of the CAN schedule and its cycles (humanoid_twin/cycles.py)."""
         slot = self.slot
+        cycles = self.isr_cycles + (_C_TIMER_TX if slot == 0 or slot == 2 else _C_TIMER_RX)
+        self.isr_cycles = 0
+        us = cycles_to_us(cycles, self.ips)
+        load = us / _SLOT_US
+        if load > self.slot_load_max:
+            self.slot_load_max = load
+        if us > _SLOT_US:
+            self.slot_overruns += 1
+        self.busy_until_us = now + us
         if slot == 0:
             if self.slave == 1:
                 if self._round_open:

@@ -29,6 +29,7 @@ from humanoid_twin import hardware
 from humanoid_twin.clock import US_PER_S
 from humanoid_twin.plant import constants as C  # noqa: N812
 from humanoid_twin.plant.geometry import convex_hull, signed_distance
+from humanoid_twin.plant.imu import TrunkImu
 from humanoid_twin.protocol.wire import N_SCU, POS_LIMIT_DEG, check_scu
 
 # The model ships inside the package (MuJoCo Menagerie / dm_control style) and is read with
@@ -328,6 +329,7 @@ class Plant:
         self._force_fault = False
         self._force_noise_counts = 0
         self._force_fault_rng = np.random.default_rng(ss.spawn(1)[0])
+        self._imu = TrunkImu(m, ss.spawn(1)[0])     # the body board's inclinometer and gyroscope
         self._force_stuck: dict[int, list[int] | None] = {}
         self._stuck_actuators: set[int] = set()
         self.reset()
@@ -354,6 +356,8 @@ class Plant:
         self._force_rng = np.random.default_rng(self._s_force)
         self._pot_noise: list[float] = []
         self._force_noise: list[float] = []
+        if hasattr(self, "_imu"):
+            self._imu.reset()
         mujoco.mj_forward(m, self.data)
 
     def bind_clock(self, clock: Any) -> None:
@@ -550,6 +554,20 @@ class Plant:
         if self._force_fault:
             return self._faulty_forces(scu, out)
         return out
+
+    def read_imu_adc(self, scu: int) -> list[int]:
+        """The body board's (``hardware.IMU_SCU``) inclinometer and gyroscope, four 8-bit ADC
+        counts (``hardware.IMU_SENSOR_NAMES``; humanoid_twin/plant/imu.py); other boards read 0."""
+        self._sync()
+        if scu != hardware.IMU_SCU:
+            _check_scu(scu)
+            return [0, 0, 0, 0]
+        return self._imu.read(self.data, self.t_us)
+
+    def trunk_attitude_deg(self) -> tuple[float, float, float, float]:
+        """Ground truth: the trunk's roll, pitch (deg) and body rates (deg/s) at the IMU site."""
+        self._sync()
+        return self._imu.true_attitude(self.data)
 
     # --- injected faults (humanoid_twin/faults.py) --------------------------------------------------
     def _faulty_forces(self, scu: int, out: list[int]) -> list[int]:

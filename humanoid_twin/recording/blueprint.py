@@ -15,7 +15,7 @@ import rerun as rr
 import rerun.blueprint as rrb
 from rerun.blueprint.encodings import TextLogColumn, TextLogColumnKind
 
-from humanoid_twin.hardware import FOOT_OF_SCU, LEG_SCUS, N_SERVOS, SERVO_JOINTS
+from humanoid_twin.hardware import FOOT_OF_SCU, IMU_SCU, LEG_SCUS, N_SERVOS, SERVO_JOINTS
 from humanoid_twin.protocol.wire import SCUS
 from humanoid_twin.recording.paths import (
     CAN,
@@ -179,6 +179,16 @@ def default_blueprint(
                 contents=[f"{scu_path(s)}/status", f"{scu_path(s)}/deadline_violations"],
             )
             for s in scus
+        ],
+        *[
+            _plot(name=f"{scu_path(s).split('/')[1]}: task time per tick vs its 20 ms budget (ms)",
+                  origin=f"{scu_path(s)}/task_ms")
+            for s in scus
+        ],
+        *[
+            _plot(name=f"trunk {what.replace('_', ' ')}: body board sensor vs truth",
+                  origin=f"{scu_path(IMU_SCU)}/imu/{what}")
+            for what in ("roll", "pitch", "roll_rate", "pitch_rate") if IMU_SCU in scus
         ],
         grid_columns=2,
         name="Boards",

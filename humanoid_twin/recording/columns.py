@@ -25,7 +25,14 @@ from dataclasses import dataclass
 from typing import Any
 
 from humanoid_twin.clock import US_PER_S
-from humanoid_twin.hardware import FOOT_OF_SCU, N_SERVOS, PWM_PERIOD_US, SERVO_JOINTS
+from humanoid_twin.hardware import (
+    FOOT_OF_SCU,
+    IMU_SCU,
+    N_SERVOS,
+    PWM_PERIOD_US,
+    SERVO_JOINTS,
+    imu_from_counts,
+)
 from humanoid_twin.plant import FOOT_BODIES, SERVO_SIGN
 from humanoid_twin.recording.paths import (
     CAN,
@@ -226,7 +233,13 @@ def _board_columns(scu: int, slave: Any, first: int) -> list[Column]:
     counters = ColumnGroup(flags, every=COUNTER_EVERY)
     counters.column(f"{base}/status", ("pwm", "calibrated"), "flag", (BLUE, PURPLE))
     counters.column(f"{base}/deadline_violations", ("deadline violations",), "count", (RED,))
-    cols = [*servo.columns, *counters.columns]
+    # the last pass's time at the board's clock (the PIC18 cycle table) against its 20 ms
+    budget_ms = PWM_PERIOD_US / 1000.0
+    task = Column(f"{base}/task_ms", ("task time", "budget"), "ms",
+                  lambda t: (slave.task_us / 1000.0, budget_ms), (BLUE, RED))
+    cols = [*servo.columns, *counters.columns, task]
+    if scu == IMU_SCU:
+        cols += _imu_columns(base, slave)
     foot = FOOT_OF_SCU.get(scu)
     if foot is None:
         return cols
@@ -250,6 +263,21 @@ def _board_columns(scu: int, slave: Any, first: int) -> list[Column]:
         group.column(f"{base}/cop/{axis}/firmware", ("firmware",), "mm", (ORANGE,), True)
         group.column(f"{base}/cop/{axis}/truth", ("truth",), "mm", (GREEN,), True)
     return cols + group.columns
+
+
+def _imu_columns(base: str, slave: Any) -> list[Column]:
+    """The body board's inclinometer and gyroscope (its sensor database, decoded) beside the
+    trunk's true attitude and rates (docs/firmware.md, "Trunk inertial sensors")."""
+    def imu(t: Tick) -> Sequence[float]:
+        m = imu_from_counts(slave.sensors.special)
+        true = t.twin.plant.trunk_attitude_deg()
+        return (m[0], true[0], m[1], true[1], m[2], true[2], m[3], true[3])
+
+    group = ColumnGroup(imu)
+    for what, unit in (("roll", "deg"), ("pitch", "deg"), ("roll_rate", "deg/s"), ("pitch_rate", "deg/s")):
+        sensor = "gyroscope" if what.endswith("rate") else "inclinometer"
+        group.column(f"{base}/imu/{what}", (sensor, "truth"), unit, (ORANGE, GREEN))
+    return group.columns
 
 
 def _robot_columns() -> list[Column]:

@@ -29,6 +29,9 @@ from humanoid_twin.slave.database cimport (
 cdef long PWM_BUSY_US
 cdef long PWM_PERIOD_US
 cdef long SFLAGS_WATCHDOG
+cdef long long _C_ISR_RX
+cdef long long _C_ISR_TX
+cdef long long _C_ISR_OTHER
 
 
 cdef class SlaveCan:
@@ -57,9 +60,13 @@ cdef class SlaveCan:
     cdef public bint law_stopped
     cdef public bint bus_off_seen
     cdef public object on_stop
+    cdef public long long isr_cycles
+    cdef public long long _skipped_seen
 
     @cython.locals(now=cython.longlong, due=cython.longlong)
     cpdef lowISR(self, object msg)
+    @cython.locals(c=CanController, skipped=cython.longlong, cycles=cython.longlong)
+    cpdef long long take_isr_cycles(self) except? -1
     cpdef _isr_send(self)
     @cython.locals(act=Actuators, sys_=ActuatorStatus, st=SensorStatus, a0=ActuatorServo,
                    a1=ActuatorServo, a2=ActuatorServo, c0=Control, c1=Control, c2=Control, pwm=bint,

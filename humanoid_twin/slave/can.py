@@ -26,6 +26,7 @@ from typing import TYPE_CHECKING, Any
 
 import can
 
+from humanoid_twin.cycles import SLAVE
 from humanoid_twin.hardware import PWM_BUSY_US, PWM_PERIOD_US
 from humanoid_twin.protocol.canframes import (
     ACTUATION_IDS,
@@ -50,6 +51,10 @@ __all__ = ["ISR_LATENCY_US", "SlaveCan"]
 
 ISR_LATENCY_US = 20   # end of the received frame -> TXREQ of the answer (docs/firmware.md)
 _BUS_OFF = ErrorState.BUS_OFF.label   # a controller's ``state`` when bus-off
+# lowISR's cycles (humanoid_twin/cycles.py): a packet for this board, its answer, another frame
+_C_ISR_RX = SLAVE["isr_actuation"]
+_C_ISR_TX = SLAVE["isr_answer"]
+_C_ISR_OTHER = SLAVE["isr_other"]
 
 
 class SlaveCan:
@@ -81,6 +86,8 @@ class SlaveCan:
         "law_stopped",
         "bus_off_seen",
         "on_stop",
+        "isr_cycles",
+        "_skipped_seen",
     )
 
     def __init__(self, address: int, clock: Clock, db: Global, phase_us: int) -> None:
@@ -116,6 +123,9 @@ class SlaveCan:
         self.law_stopped = False      # a control law was stopped (Sensors 2 SFlags bit 2)
         self.bus_off_seen = False
         self.on_stop: Any = None
+        # cycles the receive interrupt took since the main loop last asked (take_isr_cycles)
+        self.isr_cycles = 0
+        self._skipped_seen = 0
         self.prepareSensorPackets()
 
     def initCan(self, network: Any) -> None:
@@ -138,7 +148,9 @@ class SlaveCan:
         index = self._rx_index.get(msg.arbitration_id)
         if index is None:                          # not for this board, or not an actuation
             self._rx_ignored += 1
+            self.isr_cycles += _C_ISR_OTHER
             return
+        self.isr_cycles += _C_ISR_RX
         self.controller.abort()                    # abort the previous TX
         self._tx_due_us = -1                       # and an answer still in the ISR
         if not self.receiveCanMessage(index, msg.data):
@@ -156,6 +168,16 @@ class SlaveCan:
         self._tx_index = index
         self._tx_due_us = due
         self.clock.schedule(due, self._isr_send_cb)
+
+    def take_isr_cycles(self) -> int:
+        """The cycles ``lowISR`` took since the last call (the frames the controller counted
+        without calling it included: on the PIC the interrupt ran for them too); restarts the count."""
+        c = self.controller
+        skipped = c.rx_skipped if c is not None else 0
+        cycles = self.isr_cycles + (skipped - self._skipped_seen) * _C_ISR_OTHER
+        self._skipped_seen = skipped
+        self.isr_cycles = 0
+        return cycles
 
     def _isr_send(self) -> None:
         if self.clock.now_us != self._tx_due_us:   # superseded by a later packet
@@ -213,6 +235,7 @@ class SlaveCan:
         status; 1: currents, force sensors) to the Master; its TXREQ now, or at ``at_us`` when
         nothing runs on the clock before then (``CanController.send_at``)."""
         self.tx_packets += 1
+        self.isr_cycles += _C_ISR_TX
         controller = self.controller
         msg = self._tx_msgs[index] = controller.load_tx(
             self._tx_msgs[index], self._sensor_ids[index], self.payload[index])

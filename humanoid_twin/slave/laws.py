@@ -44,6 +44,7 @@ from dataclasses import dataclass
 from importlib.metadata import entry_points
 from typing import Any
 
+from humanoid_twin.cycles import LAW
 from humanoid_twin.hardware import N_SERVOS
 from humanoid_twin.protocol.wire import POS_LIMIT_DEG
 from humanoid_twin.slave.data import jacobianMatrix
@@ -138,12 +139,16 @@ class ControlLaw:
     """Base class of a control law (see the module docstring for the contract).
 
     Class attributes: ``name`` (for messages), ``output`` (:data:`VELOCITY` or :data:`POSITION`),
-    ``needs_foot``. Override :meth:`step` and, for a law with state, :meth:`start`.
+    ``needs_foot``, ``cycles`` (PIC18 instruction cycles per call of :meth:`step`, an int or a
+    method returning one; None: charged like the built-in law of its control type, and the run
+    says so; humanoid_twin/cycles.py, docs/controllers.md). Override :meth:`step` and, for a
+    law with state, :meth:`start`.
     """
 
     name: str = "law"
     output: str = VELOCITY
     needs_foot: bool = False
+    cycles: int | None = None
 
     def start(self, servo: int, inputs: LawInputs) -> None:
         """Servo ``servo`` starts under this law (board reset, or its control type switched to
@@ -203,6 +208,7 @@ class OpenLoopLaw(ControlLaw):
     """``openloopControl`` (NO_CONTROL, table 11): the requested position goes to the servo unchanged."""
 
     name = "openloop"
+    cycles = LAW[0]
     output = POSITION
 
     def step(self, inputs: LawInputs) -> Sequence[int]:
@@ -217,6 +223,7 @@ class LocomotionLaw(ControlLaw):
     applied now (bumpless), the past errors taken equal to the first error seen."""
 
     name = "locomotion"
+    cycles = LAW[1]
     output = POSITION
 
     def __init__(self) -> None:
@@ -266,6 +273,7 @@ class ReactionLaw(ControlLaw):
     the foot (compliance). No action while the foot is unloaded."""
 
     name = "reaction"
+    cycles = LAW[2]
     output = VELOCITY
     needs_foot = True
 
@@ -292,6 +300,7 @@ class JacobianLaw(ControlLaw):
     ``v = (KP * J^T e) >> 16`` in 1/256 degree per tick, / 2^KD. No action while unloaded."""
 
     name = "balance"
+    cycles = LAW[3]
     output = VELOCITY
     needs_foot = True
 
@@ -405,7 +414,9 @@ def install_laws(twin: Any, laws: Mapping[int | str, Any] | Iterable[tuple[int |
     """Put the given laws on every Slave of ``twin`` (each board gets its own instance), replacing
     the built-in law of each control type named: ``install_laws(twin, {"balance": MyLaw})``."""
     from humanoid_twin.containment import describe, user_fault
+    from humanoid_twin.cycles import law_cycles, note_default_cost
 
+    first: list[tuple[Any, int]] = []       # one instance per type: its cost said once, at the end
     for ctype, factory in resolve_laws(laws).items():
         for slave in twin.slaves.values():
             try:
@@ -415,4 +426,14 @@ def install_laws(twin: Any, laws: Mapping[int | str, Any] | Iterable[tuple[int |
                     raise
                 raise LawError(f"law {getattr(factory, '__qualname__', '?')!s:.80} cannot be made for "
                                f"SCU {slave.address}: {describe(exc)}") from None
+            try:
+                law_cycles(law, ctype)
+            except BaseException as exc:   # a user's cycles: not a cost, or it raised
+                if not user_fault(exc):
+                    raise
+                name = getattr(factory, "__qualname__", "?")
+                raise LawError(f"law {name!s:.80}: {describe(exc)}") from None
             slave.servo.set_law(ctype, law)
+        first.append((law, ctype))
+    for law, ctype in first:
+        note_default_cost(law, ctype)

@@ -27,6 +27,7 @@ cdef class Pic2:
     cdef public long address
     cdef public object plant
     cdef public bint has_foot
+    cdef public bint has_imu
     cdef public bint pwm
     cdef public bint filter_on
     cdef public list b_q

@@ -27,6 +27,7 @@ from typing import Protocol
 from humanoid_twin.hardware import (
     CURRENT_PULSE_FULL_US,
     FOOT_OF_SCU,
+    IMU_SCU,
     N_SERVOS,
     N_SPECIAL_SENSORS,
     POT_B_NOMINAL_DEG,
@@ -60,6 +61,7 @@ class ServoPlant(Protocol):
     def set_pwm(self, scu: int, pulses_us: Sequence[int | None]) -> None: ...
     def read_servos(self, scu: int) -> tuple[list[int], list[int]]: ...
     def read_force_adc(self, scu: int) -> list[int]: ...
+    def read_imu_adc(self, scu: int) -> list[int]: ...
 
 
 def limitPosition(position: int) -> int:
@@ -106,6 +108,7 @@ class Pic2:
         "address",
         "plant",
         "has_foot",
+        "has_imu",
         "pwm",
         "filter_on",
         "b_q",
@@ -129,6 +132,7 @@ class Pic2:
         self.address = address
         self.plant = plant
         self.has_foot = address in FOOT_OF_SCU
+        self.has_imu = address == IMU_SCU
         self.pwm = False
         self.filter_on = False
         self.b_q: list[int] = [B_NOMINAL_Q] * N_SERVOS
@@ -204,7 +208,8 @@ class Pic2:
             self.vel[i] = 0
         for k in range(N_SPECIAL_SENSORS):
             self.offsets[k] = int(offsets[k])
-            self.special[k] = force_result(self.force8[k], self.offsets[k])
+            if not self.has_imu:
+                self.special[k] = force_result(self.force8[k], self.offsets[k])
 
     # -- measurement ---------------------------------------------------------------------------
     def updateServoMeasures(self) -> None:
@@ -255,10 +260,19 @@ class Pic2:
 
     def sampleExtraSensors(self) -> None:
         """``sampleExtraSensors`` (table 17): the four force sensors, 8-bit ADC -> 7 bits ->
-        plus the calibration offset -> 8-bit result (0..255). Boards without a foot read 0."""
+        plus the calibration offset -> 8-bit result (0..255). Boards without a foot read 0.
+        The body board (``hardware.IMU_SCU``) reads its inclinometer and gyroscope instead: the
+        four 8-bit ADC counts are its special values as they are (docs/firmware.md)."""
         if self.has_foot:
             f8 = self.plant.read_force_adc(self.address)
             self.force8 = f8
+        elif self.has_imu:
+            f8 = self.plant.read_imu_adc(self.address)
+            self.force8 = f8
+            sp = self.special
+            for k in range(N_SPECIAL_SENSORS):
+                sp[k] = f8[k]
+            return
         else:
             f8 = self.force8          # stays [0, 0, 0, 0]
         f7 = self.force7

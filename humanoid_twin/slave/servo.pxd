@@ -60,6 +60,8 @@ cdef class ServoControl:
     cdef public LawInputs inputs
     cdef public object law_fault
     cdef public set _stopped
+    cdef public list law_cost
+    cdef public long long law_cycles_tick
 
     cpdef object law(self, long ctype)
     @cython.locals(i=cython.long, p=cython.long)

@@ -33,6 +33,7 @@ from collections.abc import Sequence
 from typing import Any
 
 from humanoid_twin.containment import describe, law_output, user_fault
+from humanoid_twin.cycles import law_cycles
 from humanoid_twin.hardware import FORCE_CALIBRATION_VALUE, N_SERVOS, N_SPECIAL_SENSORS, POT_COUNTS_PER_DEG
 from humanoid_twin.protocol.wire import POS_LIMIT_DEG, ControlType
 from humanoid_twin.slave.data import divround
@@ -221,6 +222,8 @@ class ServoControl:
         "inputs",
         "law_fault",
         "_stopped",
+        "law_cost",
+        "law_cycles_tick",
     )
 
     def __init__(self, actuators: Actuators, has_foot: bool, signs: Sequence[int] = (1, 1, 1),
@@ -242,6 +245,9 @@ class ServoControl:
         self.last_v: list[int] = [0] * N_SERVOS      # last velocity applied (Q8), for recording
         # one instance of each control type's law on this board (table 9 order)
         self.laws: dict[int, ControlLaw] = {t: make() for t, make in BUILTIN_LAWS.items()}
+        # each type's law's cycles per call (humanoid_twin/cycles.py) and the cycles this tick
+        self.law_cost: list[int] = [law_cycles(self.laws[t], t)[0] for t in range(len(BUILTIN_LAWS))]
+        self.law_cycles_tick = 0
         self.inputs = LawInputs(scu, has_foot, self.signs)
         self.law_fault: LawFault | None = None       # the first law stopped on this board (kept)
         self._stopped: set[int] = set()               # control types whose law was stopped
@@ -256,6 +262,7 @@ class ServoControl:
         that type start under it now (:meth:`ControlLaw.start`)."""
         if ctype not in BUILTIN_LAWS:
             raise ValueError(f"control type must be 0..3 (table 9), got {ctype!r}")
+        self.law_cost[ctype] = law_cycles(law, ctype)[0]
         self.laws[ctype] = law
         self._stopped.discard(ctype)
         self._fill_inputs(None)
@@ -327,6 +334,7 @@ class ServoControl:
                 self.acc[i] = 0
                 self._start(self.law(t), i)
         done = 0
+        self.law_cycles_tick = 0
         for i in range(N_SERVOS):
             t = mine[i]
             if done >> i & 1:
@@ -342,6 +350,7 @@ class ServoControl:
             if t in self._stopped:
                 continue                        # stopped: the servos hold their last output
             inp.servos = servos
+            self.law_cycles_tick += self.law_cost[t if t in self.laws else BALANCE_CONTROL]
             values = self._run(law, t, inp)
             if values is None:
                 continue

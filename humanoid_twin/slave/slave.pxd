@@ -24,6 +24,12 @@ cdef long N_SERVOS
 cdef long N_SPECIAL_SENSORS
 cdef long long PWM_PERIOD_US
 cdef long LOCOMOTION_CONTROL
+cdef long long PWM_BUSY_US
+cdef long long _C_LOOP
+cdef long long _C_SPECIAL
+cdef long long _C_COP
+cdef long long _C_CALIB
+cdef long long _C_CONTROL
 
 
 cdef class Slave:
@@ -48,6 +54,16 @@ cdef class Slave:
     cdef public long long deadline_violations
     cdef public long long task_ns_total
     cdef public long long task_ns_max
+    cdef public long long ips
+    cdef public long long task_cycles
+    cdef public long long task_us
+    cdef public double task_load_max
+    cdef public long long busy_until_us
+    cdef public long long ticks_skipped
+    cdef public bint _outputs_due
+    cdef public bint _overran
+    cdef public bint _pass_late
+    cdef public object _finish_cb
     cdef public long long _due_us
     cdef public long long _delay_us
     cdef public long long _delay_ticks
@@ -68,7 +84,10 @@ cdef class Slave:
                    a=ActuatorServo, restarted=cython.long, sv=list, still=list, fin=list,
                    done=bint, n_fin=cython.long, s=StructServo, p=cython.long, v=cython.long,
                    f=bint, target=cython.long, d=cython.long, sp=list, k=cython.long,
-                   dt=cython.longlong)
+                   dt=cython.longlong, cycles=cython.longlong, us=cython.longlong,
+                   load=cython.double, end=cython.longlong)
     cpdef loop(self)
+    @cython.locals(can_=SlaveCan)
+    cpdef _finish(self)
     @cython.locals(calib=Calibration, pic=Pic2, act=Actuators, i=cython.long)
     cpdef _calibration_step(self)

@@ -27,7 +27,8 @@ import time
 from typing import Any
 
 from humanoid_twin.clock import Clock
-from humanoid_twin.hardware import FOOT_OF_SCU, N_SERVOS, N_SPECIAL_SENSORS, PWM_PERIOD_US
+from humanoid_twin.cycles import DEFAULT_PIC_MHZ, SLAVE, check_pic_mhz, cycles_to_us, instructions_per_s
+from humanoid_twin.hardware import FOOT_OF_SCU, N_SERVOS, N_SPECIAL_SENSORS, PWM_BUSY_US, PWM_PERIOD_US
 from humanoid_twin.protocol.wire import check_scu
 from humanoid_twin.slave.can import SlaveCan
 from humanoid_twin.slave.data import calcCoP
@@ -56,6 +57,14 @@ LEG_SIGNS: dict[int, tuple[int, int, int]] = {1: (-1, 1, 1), 2: (1, 1, 1)}
 MOTION_FIN_TOL_DEG = 1
 MOTION_FIN_STILL_TICKS = 2
 
+# The cycle table's entries the loop charges (humanoid_twin/cycles.py, docs/firmware.md)
+_C_LOOP = SLAVE["loop"] + N_SERVOS * SLAVE["measure_servo"] + SLAVE["status"] + SLAVE["packets"] \
+    + SLAVE["pwm_period"]
+_C_SPECIAL = N_SPECIAL_SENSORS * SLAVE["adc_channel"]
+_C_COP = SLAVE["calc_cop"]
+_C_CALIB = SLAVE["calibration"]
+_C_CONTROL = N_SERVOS * SLAVE["trajectory_servo"] + SLAVE["controller"] + SLAVE["actuation"]
+
 
 class Slave:
     """One Slave board (PIC18F258): ``Slave(address, clock, plant, network, *, phase_us)``.
@@ -65,11 +74,13 @@ class Slave:
     20 ms). The firmware has no randomness: a board takes no seed.
     The public attributes are the manual's modules: ``db`` (GLOBAL: ``sensors``,
     ``actuators``), ``traj`` (TRAJECTORY), ``servo`` (SERVO), ``calib`` (its calibration),
-    ``pic`` (PIC2), ``can`` (CAN).
+    ``pic`` (PIC2), ``can`` (CAN). ``pic_mhz``: the board's clock (humanoid_twin/cycles.py): each
+    pass of the loop takes the virtual time its cycles take at that clock.
     """
 
     def __init__(
-        self, address: int, clock: Clock, plant: Any, network: Any, *, phase_us: int
+        self, address: int, clock: Clock, plant: Any, network: Any, *, phase_us: int,
+        pic_mhz: float = DEFAULT_PIC_MHZ,
     ) -> None:
         address = check_scu(address, "Slave address (an SCU address)")
         if isinstance(phase_us, bool) or not isinstance(phase_us, int) or phase_us < 0:
@@ -82,6 +93,7 @@ class Slave:
         self.network = network
         self.phase_us = phase_us % PWM_PERIOD_US
         self.has_foot = address in FOOT_OF_SCU
+        self.ips = instructions_per_s(check_pic_mhz(pic_mhz))
         self.db = Global()
         self.sensors = self.db.sensors
         self.actuators = self.db.actuators
@@ -100,6 +112,17 @@ class Slave:
         self.deadline_violations = 0
         self.task_ns_total = 0
         self.task_ns_max = 0
+        # the cycle budget (docs/firmware.md): the last pass's cycles and time, the largest
+        # fraction of a period a pass used, the end of the pass in progress, ticks missed
+        self.task_cycles = 0
+        self.task_us = 0
+        self.task_load_max = 0.0
+        self.busy_until_us = -1
+        self.ticks_skipped = 0
+        self._outputs_due = False
+        self._overran = False
+        self._pass_late = False
+        self._finish_cb = self._finish
         self._due_us = 0
         self._delay_us = 0
         self._delay_ticks = 0
@@ -163,8 +186,12 @@ class Slave:
         return self.pic.applied
 
     def _tick(self) -> None:
-        """The PWM period timer: ``waitTick`` returns."""
+        """The PWM period timer: ``waitTick`` returns (not while the pass before still runs:
+        then the following period's tick is the next ``waitTick``'s)."""
         now = self.clock.now_us
+        if now <= self.busy_until_us:
+            self.ticks_skipped += 1
+            return
         self._due_us = now
         if self._delay_ticks:
             self._delay_ticks -= 1
@@ -179,6 +206,7 @@ class Slave:
         step0 = self.plant.step_ns_total      # the physics due now runs at the first plant read:
         self.ticks += 1
         late = now > self._due_us
+        self._pass_late = late
         if late:
             self.deadline_violations += 1
         can_ = self.can
@@ -189,8 +217,12 @@ class Slave:
         pic.updateServoMeasures()
         pic.finalizeServoMeasures()
         pic.sampleExtraSensors()
+        cycles = _C_LOOP + can_.take_isr_cycles()
         if self.has_foot:
             self.cop_x, self.cop_y, self.cop_loaded = calcCoP(pic.force7)
+            cycles += _C_SPECIAL + _C_COP
+        elif pic.has_imu:
+            cycles += _C_SPECIAL
 
         act = self.actuators
         st = self.sensors.sysStatus
@@ -201,6 +233,7 @@ class Slave:
                 calib.reset()
         if calib.state != Calibration.DONE:
             self._calibration_step()
+            cycles += _C_CALIB
 
         traj = self.traj
         servo = self.servo
@@ -227,7 +260,8 @@ class Slave:
                 servo.servoRequest(i, traj.position[i])
             servo.controller(pic.pos, self.cop_x, self.cop_y, self.cop_loaded, types, pic.force7)
             can_.law_stopped = servo.law_stopped
-            pic.servoActuation(servo.output)
+            cycles += _C_CONTROL + servo.law_cycles_tick
+            self._outputs_due = True          # servoActuation: below, when the pass reaches it
 
         # sensor database (GLOBAL) and status bits
         sv = self.sensors.servo
@@ -258,13 +292,42 @@ class Slave:
         st.pwm = pic.pwm
         st.filter = pic.filter_on
         st.calib = done
-        st.deadlineError = late
-        can_.prepareSensorPackets()
-        can_.bus_off_seen = False
+        st.deadlineError = late or self._overran
+        # the pass's time at the board's clock: its outputs (servoActuation, the sensor packets)
+        # happen when it reaches them. Within the PWM window no answer leaves (lowISR), so a pass
+        # that ends there is seen as ending now; a pass past its period skips the tick it missed
+        us = cycles_to_us(cycles, self.ips)
+        self.task_cycles = cycles
+        self.task_us = us
+        load = us / PWM_PERIOD_US
+        if load > self.task_load_max:
+            self.task_load_max = load
+        end = now + us
+        if end >= self._due_us + PWM_PERIOD_US:
+            self.busy_until_us = end
+        if us <= PWM_BUSY_US:
+            self._finish()
+        else:
+            self.clock.schedule(end, self._finish_cb)
         dt = time.perf_counter_ns() - t0 - (self.plant.step_ns_total - step0)  # not the board's task time
         self.task_ns_total += dt
         if dt > self.task_ns_max:
             self.task_ns_max = dt
+
+    def _finish(self) -> None:
+        """The end of the pass: ``servoActuation`` of the controller's outputs, the deadline flag
+        (the period is over: ``deadlineError``, seed 000 section 3), the sensor packets."""
+        if self._outputs_due:
+            self._outputs_due = False
+            self.pic.servoActuation(self.servo.output)
+        self._overran = self.clock.now_us >= self._due_us + PWM_PERIOD_US
+        if self._overran:
+            if not self._pass_late:           # a late pass is counted once
+                self.deadline_violations += 1
+            self.sensors.sysStatus.deadlineError = True
+        can_ = self.can
+        can_.prepareSensorPackets()
+        can_.bus_off_seen = False
 
     def _calibration_step(self) -> None:
         """``calibration`` (table 8), one tick of it (see ``servo.Calibration``)."""
