@@ -6,7 +6,8 @@ A rig is the :class:`~humanoid_twin.twin.Twin` and what a run puts on it, always
 1. the twin (seed, CAN interface, supervisor thresholds), then the ``on_twin`` hook (the live
    viewer attaches there);
 2. the firmware laws (``--law``) on every Slave;
-3. the rerun recorder (``--out FILE.rrd``), then the CAN log (``--can-log FILE``), then the
+3. the rerun recorder (``--out FILE.rrd``; live to a viewer too with ``serve --viewer`` /
+   ``--connect``: ``live``), then the CAN log (``--can-log FILE``), then the
    serial log (``--serial-log FILE``: every RS-232 byte, bus/serial_log.py; its header records
    :meth:`RigOptions.replay_meta`, and the tilt's start once known, so that its replay rebuilds
    this rig: :meth:`RigOptions.from_replay_meta`);
@@ -48,6 +49,7 @@ __all__ = ["Rig", "RigOptions", "ScenarioError", "BootError", "boot", "tilt_prof
 BOOT_TIMEOUT_S = 5.0
 TILT_RATE_DEG_S = 1.0       # "the floor platform tilts slowly": 1 degree per second
 PROGRESS_PERIOD_US = 100_000
+LIVE_CHUNK_S = 1.0          # a live viewer gets the recording's rows this often (simulated s)
 
 
 @dataclass(kw_only=True)
@@ -73,6 +75,9 @@ class RigOptions:
     can_log_name: str | None = None
     # the RS-232 log (humanoid_twin/bus/serial_log.py), replayable into a rig of the same options
     serial_log: Path | None = None
+    # a rerun viewer's gRPC URL (rerun+http://127.0.0.1:PORT/proxy): the recording streams there
+    # live, in chunks of LIVE_CHUNK_S simulated seconds (beside ``out``, or alone)
+    live: str | None = None
     # The ground-truth monitor behind fell / trunk tilt / CoP margin / CoP error. Off only for
     # scripts/bench.py, which times the twin itself (like recording, it is instrumentation).
     monitor: bool = True
@@ -200,10 +205,11 @@ class Rig:
         self.injector = FaultInjector(twin, opts.faults, opts.seed)
         if opts.laws:
             install_laws(twin, opts.laws)      # LawError: a law that cannot be made for every board
-        if opts.out is not None:
+        if opts.out is not None or opts.live is not None:
             from humanoid_twin.recording import Recorder, compact_for
 
-            self.recorder = Recorder(opts.out, twin, compact=compact_for(expected_s))
+            live = {} if opts.live is None else {"stream_to": opts.live, "chunk_s": LIVE_CHUNK_S}
+            self.recorder = Recorder(opts.out, twin, compact=compact_for(expected_s), **live)
         if opts.can_log is not None:
             from humanoid_twin.recording import CanLog
 

@@ -1,20 +1,25 @@
 """``--serial-log FILE`` on ``run`` and ``serve``: every RS-232 byte each way, written beside
 ``--out`` and ``--can-log`` under a temporary name, and a log that replays into a twin rebuilt
-from the options its header records (docs/buses.md, "The serial log"; docs/serve.md)."""
+from the options its header records (docs/buses.md, "The serial log"; docs/serve.md). And serve's
+live view: ``--connect`` streams the recording to a rerun viewer on loopback."""
 
 from __future__ import annotations
 
 import json
+import os
 import signal
+import socket
 import subprocess
 import sys
 import textwrap
+import time
 from pathlib import Path
 
 import can
+import pytest
 
 from humanoid_twin.bus.serial_log import TAP_TO_DEVICE, TAP_TO_HOST, read_log
-from humanoid_twin.recording.readback import read_rrd_rows, verify_rrd
+from humanoid_twin.recording.readback import read_rrd_rows, rerun_executable, verify_rrd
 
 CLI = [sys.executable, "-m", "humanoid_twin.cli.main"]
 REPLAY = [sys.executable, "-m", "humanoid_twin.bus.serial_log", "replay"]
@@ -139,4 +144,72 @@ def test_sweep_refuses_a_serial_log(tmp_path):
     r = subprocess.run([*CLI, "sweep", "stand", "--out", str(tmp_path / "t.csv"), "--serial-log",
                         str(tmp_path / "f.log")], capture_output=True, text=True, timeout=60)
     assert r.returncode == 2 and "--serial-log is per run" in r.stderr, r
+    assert list(tmp_path.iterdir()) == []
+
+
+# -- live viewing: serve streams its recording to a rerun viewer on loopback -------------------------
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def _wait_listening(port: int, proc: subprocess.Popen, timeout_s: float = 30.0) -> None:
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        assert proc.poll() is None, proc.communicate()
+        try:
+            with socket.create_connection(("127.0.0.1", port), timeout=0.5):
+                return
+        except OSError:
+            time.sleep(0.1)
+    pytest.fail(f"nothing listens on 127.0.0.1:{port}")
+
+
+@pytest.mark.filterwarnings("ignore:RRD file has no footer")  # rerun --save streams without one
+def test_serve_connect_streams_the_recording_live_to_a_loopback_viewer(serve, tmp_path):
+    """``serve --connect PORT`` sends the recording, while serve runs, to the rerun gRPC server
+    listening there (here rerun's own, saving what it receives), beside ``--out``."""
+    port = _free_port()
+    received = tmp_path / "received.rrd"
+    viewer = subprocess.Popen([str(rerun_executable()), "--bind", "127.0.0.1", "--port", str(port),
+                               "--save", str(received)], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        _wait_listening(port, viewer)
+        out = tmp_path / "s.rrd"
+        proc, _ = serve("--tcp", "0", "--speed", "2", "--connect", f"127.0.0.1:{port}", "--out", str(out))
+        time.sleep(3.0)                 # ~6 simulated seconds: several live chunks of 1 s
+        proc.send_signal(signal.SIGINT)
+        _, err = proc.communicate(timeout=60)
+        assert proc.returncode == 130 and f"wrote {out}" in err, err
+    finally:
+        viewer.terminate()              # rerun closes the file it saved on SIGTERM
+        viewer.wait(30)
+    live, kept = read_rrd_rows(received), read_rrd_rows(out)
+    assert live["robot/trunk_tilt_deg"] == kept["robot/trunk_tilt_deg"] > 100    # every 20 ms row, live too
+    assert live.keys() == kept.keys()
+
+
+@pytest.mark.parametrize("addr, message", [
+    ("192.0.2.1:9876", "not a loopback address"),
+    ("example.invalid:1", "not an address"),
+    ("nope", "not HOST:PORT"),
+])
+def test_serve_connect_refuses_what_is_not_a_viewer_on_loopback(tmp_path, addr, message):
+    r = subprocess.run([*CLI, "serve", "--tcp", "0", "--connect", addr, "--out", str(tmp_path / "s.rrd")],
+                       capture_output=True, text=True, timeout=60, cwd=tmp_path)
+    assert r.returncode == 2 and r.stdout == "" and message in r.stderr, r
+    assert len(r.stderr.strip().splitlines()) == 1
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_serve_connect_needs_a_viewer_listening_and_viewer_a_display(tmp_path):
+    port = _free_port()                 # nothing listens there
+    r = subprocess.run([*CLI, "serve", "--tcp", "0", "--connect", str(port)], capture_output=True, text=True,
+                       timeout=60, cwd=tmp_path)
+    assert r.returncode == 2 and "no viewer listens there" in r.stderr, r
+    env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY")}
+    r = subprocess.run([*CLI, "serve", "--tcp", "0", "--viewer", "--out", str(tmp_path / "s.rrd")],
+                       capture_output=True, text=True, timeout=60, cwd=tmp_path, env=env)
+    assert r.returncode == 2 and "--viewer needs a display" in r.stderr, r
     assert list(tmp_path.iterdir()) == []

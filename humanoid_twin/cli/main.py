@@ -6,7 +6,7 @@ The command line is a contract (scripts and CI depend on it; docs/scenarios.md):
                                [--can-log FILE] [--serial-log FILE]
                                [--control none|locomotion|reaction|balance] [--tilt DEG] [--seed N] [--json]
     humanoid-twin serve [--pty | --tcp PORT] [--host 127.0.0.1] [--out FILE.rrd] [--can-log FILE]
-                        [--serial-log FILE]
+                        [--serial-log FILE] [--viewer | --connect [ADDR]]
                         [--law ...] [--fault ...] [--tilt DEG] [--seed N]
     humanoid-twin view FILE.rrd
 
@@ -176,6 +176,12 @@ def build_parser() -> argparse.ArgumentParser:
     serve.add_argument("--speed", type=speed_factor, default=1.0, metavar="X", help="run X times faster "
                        "than real time (0.5: half as fast; default 1, as the robot); 0.01..100")
     add_rig_options(serve, out_help="rerun recording of the whole serve run (default: none)")
+    live = serve.add_mutually_exclusive_group()
+    live.add_argument("--viewer", action="store_true", help="watch the run live in rerun's native viewer "
+                      "(started here, its server on a free loopback port; needs a display)")
+    live.add_argument("--connect", nargs="?", const="127.0.0.1:9876", metavar="ADDR",
+                      help="stream the recording live to a rerun viewer already listening at ADDR "
+                      "(HOST:PORT on loopback, default 127.0.0.1:9876: `rerun --bind 127.0.0.1`)")
 
     from humanoid_twin.cli.sweep import add_sweep_parser
 
@@ -492,12 +498,17 @@ def cmd_serve(args: argparse.Namespace) -> int:
     ``--can-log`` and ``--serial-log`` written under temporary names and renamed when serve ends
     (Ctrl-C, SIGTERM)."""
     from humanoid_twin.recording.readback import RrdReadError
+    from humanoid_twin.recording.viewer import ViewerError, live_url, spawn_live_viewer
     from humanoid_twin.serve import ServeError, ServeOptions, serve
 
     controllers = check_rig_inputs(args)        # the same checks as run's (cli/options.py)
     if args.tcp is not None:
         _check_bind(args.host, args.tcp)
         _check_remote(args.host, args.allow_remote)
+    try:
+        live = live_url(args.connect) if args.connect is not None else None
+    except ViewerError as exc:
+        raise _usage_error(str(exc)) from None
     stop: dict[str, int | None] = {"signal": None}
 
     def _stop(signum: int, frame: object) -> None:
@@ -513,9 +524,14 @@ def cmd_serve(args: argparse.Namespace) -> int:
         out_tmp = outputs.add("out", args.out, "--out") if args.out is not None else None
         can_tmp = outputs.add("can_log", args.can_log, "--can-log") if args.can_log is not None else None
         ser_tmp = outputs.add("serial_log", args.serial_log, "--serial-log") if args.serial_log else None
+        if args.viewer:             # the last check, the first thing started: the viewer's window
+            try:
+                live = spawn_live_viewer()[1]
+            except ViewerError as exc:
+                raise _usage_error(str(exc)) from None
         opts = ServeOptions(**rig_fields(args, controllers), out=out_tmp, can_log=can_tmp,
                             can_log_name=None if args.can_log is None else args.can_log.name,
-                            serial_log=ser_tmp,
+                            serial_log=ser_tmp, live=live,
                             tcp_port=args.tcp, host=args.host, idle_timeout_s=args.idle_timeout or None,
                             speed=args.speed)
         try:
