@@ -6,7 +6,11 @@ A rig is the :class:`~humanoid_twin.twin.Twin` and what a run puts on it, always
 1. the twin (seed, CAN interface, supervisor thresholds), then the ``on_twin`` hook (the live
    viewer attaches there);
 2. the firmware laws (``--law``) on every Slave;
-3. the rerun recorder (``--out FILE.rrd``), then the CAN log (``--can-log FILE``);
+3. the rerun recorder (``--out FILE.rrd``; live to a viewer too with ``serve --viewer`` /
+   ``--connect``: ``live``), then the CAN log (``--can-log FILE``), then the
+   serial log (``--serial-log FILE``: every RS-232 byte, bus/serial_log.py; its header records
+   :meth:`RigOptions.replay_meta`, and the tilt's start once known, so that its replay rebuilds
+   this rig: :meth:`RigOptions.from_replay_meta`);
 4. the ground-truth monitor, then the boards' report (task load, deadline misses, the IMU);
 5. the faults (``--fault``), their start and end told to the recording;
 6. the progress hook (every 0.1 s of virtual time).
@@ -47,6 +51,7 @@ __all__ = ["Rig", "RigOptions", "ScenarioError", "BootError", "boot", "tilt_prof
 BOOT_TIMEOUT_S = 5.0
 TILT_RATE_DEG_S = 1.0       # "the floor platform tilts slowly": 1 degree per second
 PROGRESS_PERIOD_US = 100_000
+LIVE_CHUNK_S = 1.0          # a live viewer gets the recording's rows this often (simulated s)
 
 
 @dataclass(kw_only=True)
@@ -72,9 +77,56 @@ class RigOptions:
     out: Path | None = None
     can_log: Path | None = None
     can_log_name: str | None = None
+    # the RS-232 log (humanoid_twin/bus/serial_log.py), replayable into a rig of the same options
+    serial_log: Path | None = None
+    # a rerun viewer's gRPC URL (rerun+http://127.0.0.1:PORT/proxy): the recording streams there
+    # live, in chunks of LIVE_CHUNK_S simulated seconds (beside ``out``, or alone)
+    live: str | None = None
     # The ground-truth monitor behind fell / trunk tilt / CoP margin / CoP error. Off only for
     # scripts/bench.py, which times the twin itself (like recording, it is instrumentation).
     monitor: bool = True
+
+    def replay_meta(self) -> dict[str, Any]:
+        """What a replay of this rig's RS-232 traffic needs to build the same twin (the serial
+        log's header): the seed, the CAN wire, the faults (their texts), the supervisor's
+        thresholds, the laws (``module:Class``), the tilt and the boards' clock. The outputs and
+        the monitor are not in it: they observe, they do not change what the twin answers."""
+        import dataclasses
+
+        meta: dict[str, Any] = {"seed": self.seed}
+        if self.can_interface != "humanoid_twin" or self.can_channel is not None:
+            meta.update(can_interface=self.can_interface, can_channel=self.can_channel)
+        if self.faults:
+            meta["faults"] = [spec.text for spec in self.faults]
+        if self.supervisor is not None:
+            meta["supervisor"] = dataclasses.asdict(self.supervisor)
+        if self.laws:
+            meta["laws"] = [[ctype, law if isinstance(law, str) else f"{law.__module__}:{law.__qualname__}"]
+                            for ctype, law in self.laws]
+        if self.tilt:
+            meta["tilt"] = self.tilt
+        if self.pic_mhz != DEFAULT_PIC_MHZ:
+            meta["pic_mhz"] = self.pic_mhz
+        return meta
+
+    @classmethod
+    def from_replay_meta(cls, meta: dict[str, Any]) -> RigOptions:
+        """The options :meth:`replay_meta` recorded (no outputs, no monitor); ``ValueError`` when
+        the meta cannot be read back (a fault text or a threshold that no longer parses)."""
+        from humanoid_twin.faults import FaultSpecError, parse_fault
+
+        try:
+            faults = tuple(parse_fault(text) for text in meta.get("faults", ()))
+            sup = meta.get("supervisor")
+            return cls(seed=int(meta.get("seed", 0)),
+                       can_interface=meta.get("can_interface", "humanoid_twin"),
+                       can_channel=meta.get("can_channel"), faults=faults,
+                       supervisor=None if sup is None else SupervisorConfig(**sup),
+                       laws=tuple((ctype, ref) for ctype, ref in meta.get("laws", ())),
+                       tilt=float(meta.get("tilt", 0.0)),
+                       pic_mhz=float(meta.get("pic_mhz", DEFAULT_PIC_MHZ)), monitor=False)
+        except (FaultSpecError, TypeError, ValueError) as exc:
+            raise ValueError(f"the options in its meta cannot be read back: {exc}") from None
 
 
 class ScenarioError(RuntimeError):
@@ -128,7 +180,7 @@ class Rig:
 
     Attributes: ``twin``, ``monitor`` (attached when ``opts.monitor``), ``report`` (the boards'
     task load, deadline misses and IMU error: humanoid_twin/board_report.py), ``injector``,
-    ``recorder`` and ``canlog`` (None when not asked for), ``H`` (the host's port once
+    ``recorder``, ``canlog`` and ``seriallog`` (None when not asked for), ``H`` (the host's port once
     :meth:`boot` ran), ``boot_s``, ``host_error`` (a request that failed while the run went on),
     ``end_s``.
     """
@@ -140,6 +192,7 @@ class Rig:
         self.opts = opts
         self.recorder: Any = None
         self.canlog: Any = None
+        self.seriallog: Any = None
         self.H: Any = None
         self.boot_s: float | None = None
         self.host_error: str | None = None
@@ -160,14 +213,19 @@ class Rig:
         self.injector = FaultInjector(twin, opts.faults, opts.seed)
         if opts.laws:
             install_laws(twin, opts.laws)      # LawError: a law that cannot be made for every board
-        if opts.out is not None:
+        if opts.out is not None or opts.live is not None:
             from humanoid_twin.recording import Recorder, compact_for
 
-            self.recorder = Recorder(opts.out, twin, compact=compact_for(expected_s))
+            live = {} if opts.live is None else {"stream_to": opts.live, "chunk_s": LIVE_CHUNK_S}
+            self.recorder = Recorder(opts.out, twin, compact=compact_for(expected_s), **live)
         if opts.can_log is not None:
             from humanoid_twin.recording import CanLog
 
             self.canlog = CanLog(opts.can_log, twin.network, name=opts.can_log_name)
+        if opts.serial_log is not None:
+            from humanoid_twin.bus.serial_log import SerialLog
+
+            self.seriallog = SerialLog(opts.serial_log, twin.link, meta=opts.replay_meta())
         self.monitor = Monitor(twin)
         if opts.monitor:
             self.monitor.attach()
@@ -214,6 +272,8 @@ class Rig:
         """The platform tilts from ``at_s`` (virtual s) at :data:`TILT_RATE_DEG_S` to ``opts.tilt``."""
         if self.opts.tilt:
             self.twin.plant.set_tilt_profile(tilt_profile(self.opts.tilt, at_s))
+            if self.seriallog is not None:
+                self.seriallog.note({"tilt_from_s": at_s})     # what its replay starts the tilt at
 
     def tilt_after_ready(self) -> None:
         """The platform tilts from the moment the Master's supervisor first enters ``ready`` (a
@@ -250,7 +310,7 @@ class Rig:
         """Close the outputs and the twin in the reverse of their assembly, each even when an
         earlier one failed; the first error is raised once all are closed."""
         first: BaseException | None = None
-        for thing in (self.canlog, self.recorder, self.twin):
+        for thing in (self.seriallog, self.canlog, self.recorder, self.twin):
             if thing is None:
                 continue
             try:

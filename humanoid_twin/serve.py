@@ -5,7 +5,8 @@ docs/protocol.md drives the twin from there, as it would drive the robot. One cl
 every client starts on a clean line; connects and leaves are logged on stderr (docs/serve.md).
 
 The twin and its instruments are a :class:`~humanoid_twin.rig.Rig`, assembled as for ``run``
-(laws, faults, recording, CAN log); the platform's tilt starts once a client has booted the
+(laws, faults, recording, CAN log, serial log; the recording also live to a rerun viewer with
+``RigOptions.live``); the platform's tilt starts once a client has booted the
 robot (the Master's supervisor enters ``ready``), as ``run``'s starts after its boot.
 """
 

@@ -151,6 +151,7 @@ SUMMARY_KEYS: dict[str, str] = {
     "host_controller_calls": "only with `--host-controller`: how many times its `step` was called",
     "recording": "the `.rrd` written (the CLI)",
     "can_log": "the CAN log written (the CLI)",
+    "serial_log": "the serial log written (the CLI; replay: docs/buses.md)",
     "recording_compacted": "only when the compaction of a long recording failed: `false`, the file "
                            "kept as recorded (docs/recording.md)",
     "recording_note": "only with `recording_compacted`: why the compaction failed",

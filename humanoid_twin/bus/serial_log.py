@@ -2,9 +2,10 @@
 
 Writing: :meth:`SerialLog.attach` taps the twin's cable (``SerialLink.add_tap``) and writes one
 line per write in either direction, per host flush and per unplugged cable, in virtual time
-(the format: docs/buses.md, "The serial log"). Replaying: :func:`replay` feeds the host's bytes
-at their instants into a fresh twin of the same seed and compares the twin's answers with the
-log, byte for byte and microsecond for microsecond::
+(the format: docs/buses.md, "The serial log"; ``run``/``serve --serial-log FILE`` write one
+through the rig). Replaying: :func:`replay` feeds the host's bytes at their instants into a fresh
+twin built with the options the header records (seed, faults, laws, tilt ...) and compares the
+twin's answers with the log, byte for byte and microsecond for microsecond::
 
     python -m humanoid_twin.bus.serial_log replay FILE     # exit 0: the twin answered as logged
 
@@ -52,7 +53,10 @@ class SerialLogError(ValueError):
 class SerialLog:
     """Writes every event of ``link`` to ``path`` (text, one line per event, flushed per line).
 
-    ``meta`` goes into the header as JSON (``seed`` is what :func:`replay` needs).
+    ``meta`` goes into the header as JSON: the options of the twin, as
+    :meth:`humanoid_twin.rig.RigOptions.replay_meta` gives them (``seed`` at least), which
+    :func:`replay` rebuilds the twin with; :meth:`note` adds to it later (a ``# meta`` line among
+    the records; the later lines' keys join the header's).
     """
 
     def __init__(self, path: str | Path, link: SerialLink, meta: dict[str, Any] | None = None) -> None:
@@ -70,6 +74,11 @@ class SerialLog:
     def attach(cls, twin: Any, path: str | Path) -> SerialLog:
         """Log the RS-232 cable of ``twin`` (a :class:`~humanoid_twin.twin.Twin`) into ``path``."""
         return cls(path, twin.link, meta={"seed": twin.seed})
+
+    def note(self, meta: dict[str, Any]) -> None:
+        """Add ``meta`` to the header's meta, from now (e.g. when the platform's tilt starts)."""
+        if self._f is not None:
+            self._f.write(f"# meta {json.dumps(meta, sort_keys=True)}\n")
 
     def _on_event(self, event: str, t_us: int, data: bytes, n: int) -> None:
         if self._f is None:
@@ -112,15 +121,17 @@ def read_log(path: str | Path) -> tuple[dict[str, Any], list[Record]]:
 
 
 def _meta(path: str | Path, lines: list[str]) -> dict[str, Any]:
+    """Every ``# meta`` line's keys, in file order (the header's, then :meth:`SerialLog.note` s)."""
+    meta: dict[str, Any] = {}
     for ln in lines:
         if ln.startswith("# meta "):
             try:
-                meta = json.loads(ln[len("# meta "):])
+                more = json.loads(ln[len("# meta "):])
             except json.JSONDecodeError as exc:
                 raise SerialLogError(f"{path}: its meta line is not JSON ({exc})") from None
-            if isinstance(meta, dict):
-                return meta
-    return {}
+            if isinstance(more, dict):
+                meta.update(more)
+    return meta
 
 
 def _records(path: str | Path, lines: list[str]) -> Iterator[Record]:
@@ -160,21 +171,36 @@ class ReplayResult:
 
 def replay(path: str | Path, seed: int | None = None) -> ReplayResult:
     """Feed the host->twin bytes of the log at their instants (the flushes and unplugs too) into a
-    fresh twin (seed: the log's, unless given) and compare its twin->host writes with the log's.
+    fresh twin and compare its twin->host writes with the log's. The twin is a
+    :class:`~humanoid_twin.rig.Rig` of the options the log's meta records (seed, CAN wire,
+    faults, supervisor thresholds, laws, tilt and its start; ``seed`` given: that one instead).
     An unplug is a ``serve`` session's start or end, which also resets the Master's receiver
     (``bus/bridges.py``): the replay does both."""
-    from humanoid_twin.twin import Twin
+    import dataclasses
+
+    from humanoid_twin.rig import Rig, RigOptions
 
     meta, records = read_log(path)
-    seed = int(meta.get("seed", 0)) if seed is None else seed
+    try:
+        opts = RigOptions.from_replay_meta(meta)
+    except ValueError as exc:
+        raise SerialLogError(f"{path}: {exc}") from None
+    if seed is not None:
+        opts = dataclasses.replace(opts, seed=seed)
     answers: list[Record] = []
 
     def tap(event: str, t_us: int, data: bytes, n: int) -> None:
         if event == TAP_TO_HOST:
             answers.append(Record(t_us, event, data=data, end_us=n))
 
-    twin = Twin(seed=seed)
     try:
+        rig = Rig(opts)
+    except ValueError as exc:       # a law of the meta that cannot be loaded here (LawError)
+        raise SerialLogError(f"{path}: cannot rebuild the twin it logged: {exc}") from None
+    try:
+        twin = rig.twin
+        if "tilt_from_s" in meta:
+            rig.start_tilt(float(meta["tilt_from_s"]))
         twin.link.add_tap(tap)
         host = 0
         for rec in records:
@@ -192,7 +218,7 @@ def replay(path: str | Path, seed: int | None = None) -> ReplayResult:
         end = max((max(r.t_us, r.end_us) for r in records), default=0)
         twin.advance_to(end)
     finally:
-        twin.close()
+        rig.close()
     logged = [r for r in records if r.event == TAP_TO_HOST]
     diff = None
     for i, (want, got) in enumerate(zip(logged, answers, strict=False)):

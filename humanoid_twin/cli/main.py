@@ -3,9 +3,10 @@
 The command line is a contract (scripts and CI depend on it; docs/scenarios.md):
 
     humanoid-twin run SCENARIO [--duration S] [--T S] [--motion DEG] [--perna 1|2] [--out FILE.rrd]
-                               [--can-log FILE] [--control none|locomotion|reaction|balance]
-                               [--tilt DEG] [--seed N] [--json]
+                               [--can-log FILE] [--serial-log FILE]
+                               [--control none|locomotion|reaction|balance] [--tilt DEG] [--seed N] [--json]
     humanoid-twin serve [--pty | --tcp PORT] [--host 127.0.0.1] [--out FILE.rrd] [--can-log FILE]
+                        [--serial-log FILE] [--viewer | --connect [ADDR]]
                         [--law ...] [--fault ...] [--tilt DEG] [--seed N]
     humanoid-twin view FILE.rrd
 
@@ -159,7 +160,7 @@ def build_parser() -> argparse.ArgumentParser:
         help="serve the twin in real time on a pty or TCP port for any serial client",
         description="Run the twin in real time. The first line on stdout is the port to open "
         "(a pty path, or socket://HOST:PORT with --tcp). Runs until killed (Ctrl-C, SIGTERM); "
-        "--out and --can-log are complete files then (docs/serve.md).",
+        "--out, --can-log and --serial-log are complete files then (docs/serve.md).",
     )
     where = serve.add_mutually_exclusive_group()
     where.add_argument("--pty", action="store_true", help="serve on a pseudo-terminal (default)")
@@ -175,6 +176,12 @@ def build_parser() -> argparse.ArgumentParser:
     serve.add_argument("--speed", type=speed_factor, default=1.0, metavar="X", help="run X times faster "
                        "than real time (0.5: half as fast; default 1, as the robot); 0.01..100")
     add_rig_options(serve, out_help="rerun recording of the whole serve run (default: none)")
+    live = serve.add_mutually_exclusive_group()
+    live.add_argument("--viewer", action="store_true", help="watch the run live in rerun's native viewer "
+                      "(started here, its server on a free loopback port; needs a display)")
+    live.add_argument("--connect", nargs="?", const="127.0.0.1:9876", metavar="ADDR",
+                      help="stream the recording live to a rerun viewer already listening at ADDR "
+                      "(HOST:PORT on loopback, default 127.0.0.1:9876: `rerun --bind 127.0.0.1`)")
 
     from humanoid_twin.cli.sweep import add_sweep_parser
 
@@ -204,6 +211,9 @@ CAN_LOG_BYTES_PER_FRAME = {".asc": 78, ".blf": 7, ".csv": 44, ".log": 52, ".trc"
                            ".db": 41}
 CAN_LOG_BYTES_PER_FRAME_OTHER = 150     # a format not measured (.mf4 ...): the largest
 CAN_LOG_BYTES_PER_FRAME_GZ = 8          # any format + .gz (measured .asc.gz: 3.2)
+# a serial log: the line full both ways (10 473 bytes/s each) in the protocol's 6-byte frames, a
+# line of at most 51 characters each (11-digit times: a day): 178 000 (measured flexao: 18 400)
+SERIAL_LOG_BYTES_PER_S = 180_000
 
 
 def _check_writable(path: Path, what: str) -> None:
@@ -241,6 +251,8 @@ def output_bytes(kind: str, path: Path, expected_s: float) -> int:
         from humanoid_twin.recording import compact_for
 
         return round(expected_s * RRD_BYTES_PER_S * (2 if compact_for(expected_s) else 1))
+    if kind == "serial_log":
+        return round(expected_s * SERIAL_LOG_BYTES_PER_S)
     suffix = path.suffix.lower()
     if suffix == ".gz":
         per_frame = CAN_LOG_BYTES_PER_FRAME_GZ
@@ -361,8 +373,8 @@ def cmd_run(args: argparse.Namespace) -> int:
     out = None if args.no_record else (args.out or Path(f"{load_scenario(args.scenario).name}.rrd"))
     if out is not None and out.suffix != ".rrd":
         raise _usage_error(f"--out {out}: a rerun recording must end in .rrd")
-    wanted = {k: (p, w) for k, p, w in (("out", out, "--out"), ("can_log", args.can_log, "--can-log"))
-              if p is not None}
+    wanted = {k: (p, w) for k, p, w in (("out", out, "--out"), ("can_log", args.can_log, "--can-log"),
+                                        ("serial_log", args.serial_log, "--serial-log")) if p is not None}
     outputs = _Outputs()
     from humanoid_twin import signals
 
@@ -372,7 +384,8 @@ def cmd_run(args: argparse.Namespace) -> int:
     try:
         out_tmp = outputs.add("out", out, "--out") if out is not None else None
         can_tmp = outputs.add("can_log", args.can_log, "--can-log") if args.can_log is not None else None
-        return _run(args, run_options(args, controllers, out_tmp, can_tmp), outputs)
+        ser_tmp = outputs.add("serial_log", args.serial_log, "--serial-log") if args.serial_log else None
+        return _run(args, run_options(args, controllers, out_tmp, can_tmp, ser_tmp), outputs)
     finally:
         outputs.discard()       # whatever was not committed
 
@@ -436,6 +449,8 @@ def _run(args: argparse.Namespace, opts: Any, outputs: _Outputs) -> int:
                              f"compacted: {outputs.final_names(summary.get('recording_note', ''))}\n")
     if "can_log" in outputs.final:
         summary["can_log"] = str(outputs.final["can_log"])
+    if "serial_log" in outputs.final:
+        summary["serial_log"] = str(outputs.final["serial_log"])
     for fault in summary.get("law_faults", ()):
         sys.stderr.write(f"humanoid-twin: control law {fault['law']} stopped on SCU {fault['scu']} at "
                          f"t={fault['t_s']} s: {fault['reason']}\n")
@@ -479,15 +494,21 @@ def _print_summary(summary: dict, as_json: bool) -> None:
 
 
 def cmd_serve(args: argparse.Namespace) -> int:
-    """``humanoid-twin serve``: real-time pacing, the port on the first stdout line; ``--out`` and
-    ``--can-log`` written under temporary names and renamed when serve ends (Ctrl-C, SIGTERM)."""
+    """``humanoid-twin serve``: real-time pacing, the port on the first stdout line; ``--out``,
+    ``--can-log`` and ``--serial-log`` written under temporary names and renamed when serve ends
+    (Ctrl-C, SIGTERM)."""
     from humanoid_twin.recording.readback import RrdReadError
+    from humanoid_twin.recording.viewer import ViewerError, live_url, spawn_live_viewer
     from humanoid_twin.serve import ServeError, ServeOptions, serve
 
     controllers = check_rig_inputs(args)        # the same checks as run's (cli/options.py)
     if args.tcp is not None:
         _check_bind(args.host, args.tcp)
         _check_remote(args.host, args.allow_remote)
+    try:
+        live = live_url(args.connect) if args.connect is not None else None
+    except ViewerError as exc:
+        raise _usage_error(str(exc)) from None
     stop: dict[str, int | None] = {"signal": None}
 
     def _stop(signum: int, frame: object) -> None:
@@ -495,15 +516,22 @@ def cmd_serve(args: argparse.Namespace) -> int:
 
     signal.signal(signal.SIGTERM, _stop)
     signal.signal(signal.SIGINT, _stop)
-    wanted = {k: (p, w) for k, p, w in (("out", args.out, "--out"), ("can_log", args.can_log, "--can-log"))
-              if p is not None}
+    wanted = {k: (p, w) for k, p, w in (("out", args.out, "--out"), ("can_log", args.can_log, "--can-log"),
+                                        ("serial_log", args.serial_log, "--serial-log")) if p is not None}
     outputs = _Outputs()
     outputs.check_space(wanted, 0.0)            # open-ended: the free-space margin only
     try:
         out_tmp = outputs.add("out", args.out, "--out") if args.out is not None else None
         can_tmp = outputs.add("can_log", args.can_log, "--can-log") if args.can_log is not None else None
+        ser_tmp = outputs.add("serial_log", args.serial_log, "--serial-log") if args.serial_log else None
+        if args.viewer:             # the last check, the first thing started: the viewer's window
+            try:
+                live = spawn_live_viewer()[1]
+            except ViewerError as exc:
+                raise _usage_error(str(exc)) from None
         opts = ServeOptions(**rig_fields(args, controllers), out=out_tmp, can_log=can_tmp,
                             can_log_name=None if args.can_log is None else args.can_log.name,
+                            serial_log=ser_tmp, live=live,
                             tcp_port=args.tcp, host=args.host, idle_timeout_s=args.idle_timeout or None,
                             speed=args.speed)
         try:

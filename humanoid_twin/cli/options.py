@@ -69,13 +69,16 @@ def add_pic_option(p: argparse.ArgumentParser) -> None:
 
 def add_rig_options(p: argparse.ArgumentParser, out_help: str) -> None:
     """The options of the twin and its instruments (:class:`~humanoid_twin.rig.Rig`), the same
-    for ``run`` and ``serve``: ``--out``, ``--can-log``, ``--tilt``, ``--seed``, the CAN wire,
-    ``--fault`` / ``--host-link`` and ``--law``."""
+    for ``run`` and ``serve``: ``--out``, ``--can-log``, ``--serial-log``, ``--tilt``, ``--seed``,
+    the CAN wire, ``--fault`` / ``--host-link`` and ``--law``."""
     from humanoid_twin.faults import add_fault_options
 
     p.add_argument("--out", type=Path, help=out_help)
     p.add_argument("--can-log", type=Path, help="CAN log to write; format by suffix (.asc .blf .log "
                    ".csv .trc ...), python-can writers")
+    p.add_argument("--serial-log", type=Path, metavar="FILE", help="log every RS-232 byte each way with its "
+                   "virtual time (text); replay it with python -m humanoid_twin.bus.serial_log replay FILE "
+                   "(docs/buses.md)")
     p.add_argument("--tilt", type=degrees_90, default=0.0, help="tilt the floor platform slowly (1 deg/s, "
                    "once the robot has booted) about the lateral axis to DEG (toes up positive)")
     p.add_argument("--seed", type=int, default=0, help="random seed (sensor noise, servo offsets, "
@@ -209,15 +212,16 @@ def rig_fields(args: argparse.Namespace, controllers: dict[str, Any]) -> dict[st
 
 
 def run_options(args: argparse.Namespace, controllers: dict[str, Any], out: Path | None,
-                can_log: Path | None) -> Any:
+                can_log: Path | None, serial_log: Path | None = None) -> Any:
     """The :class:`~humanoid_twin.scenarios.RunOptions` of a parsed ``run`` (``out``,
-    ``can_log``: the temporary names the outputs are written under)."""
+    ``can_log``, ``serial_log``: the temporary names the outputs are written under)."""
     from humanoid_twin.scenarios import RunOptions
 
     return RunOptions(
         **rig_fields(args, controllers),
         out=out, can_log=can_log, can_log_name=None if args.can_log is None else args.can_log.name,
-        scenario=args.scenario, duration=args.duration, T=args.T, motion=args.motion, perna=args.perna,
+        serial_log=serial_log, scenario=args.scenario, duration=args.duration, T=args.T, motion=args.motion,
+        perna=args.perna,
         control=args.control, progress=not args.no_progress, host_controller=controllers["host_controller"],
         host_period_ms=controllers["host_period_ms"], wall_timeout=args.wall_timeout,
     )

@@ -23,7 +23,7 @@ from humanoid_twin.sweep.engine import (
 from humanoid_twin.sweep.table import SweepError, read_table, table_format
 
 # run options a sweep sets itself, or that would make every run write the same file
-NOT_PARAMS = {"command", "scenario", "out", "no_record", "can_log", "json", "no_progress"}
+NOT_PARAMS = {"command", "scenario", "out", "no_record", "can_log", "serial_log", "json", "no_progress"}
 
 
 def add_sweep_parser(sub: Any) -> argparse.ArgumentParser:
@@ -111,6 +111,8 @@ def plan_sweep(args: argparse.Namespace, parser: argparse.ArgumentParser
     given = vars(parser.parse_args(["run", args.scenario, "--no-record", *run_args]))
     if given["can_log"] is not None:
         raise SweepError("--can-log is per run: use --recordings DIR for one recording per run")
+    if given["serial_log"] is not None:
+        raise SweepError("--serial-log is per run: run the one you want to log with `run --serial-log FILE`")
     if given["out"] is not None:
         raise SweepError("--out is the sweep's table; use --recordings DIR for the runs' recordings")
     if given["seed"] != base["seed"] or any(a.startswith("--seed") for a in run_args):

@@ -13,6 +13,10 @@ Static content (robot geometry, platform, floor, foot outlines, sensor positions
 and colours) and the default blueprint are sent once, at construction. What is recorded where:
 docs/recording.md.
 
+With ``stream_to`` (a viewer's gRPC URL, ``rerun+http://127.0.0.1:9876/proxy``) the same data
+also goes live to that viewer, beside the file (``path`` None: to the viewer only): ``serve
+--viewer`` / ``--connect`` (docs/serve.md).
+
 The recorder only reads: the Slave databases and firmware state, the Master and bus counters,
 and the plant's ground truth (``truth()``, ``body_poses()``, ``servo_angle_deg``). It never calls
 the plant's sensor-reading methods (they draw noise), so a recorded run is the same run as an
@@ -122,6 +126,8 @@ class Recorder:
     ``columns``: extra :class:`Column` s (recording/columns.py) sampled with the others.
     ``compact``: stream without rerun's in-memory footer index (flat memory) and rewrite the file
     compacted at :meth:`close` (default); False: rerun writes the final file directly.
+    ``stream_to``: a rerun gRPC URL (``rerun+http://HOST:PORT/proxy``) to stream the recording to
+    as well, live (a viewer listening there); ``path`` may then be None (no file).
 
     Counters: ``samples`` (rows taken), ``chunks_sent``, ``wall_s`` (wall time spent in the
     recorder: set-up, sampling, sending, closing; the compaction at close apart, in ``compact_s``),
@@ -130,7 +136,7 @@ class Recorder:
 
     def __init__(
         self,
-        path: str | pathlib.Path,
+        path: str | pathlib.Path | None,
         twin: Any,
         period_us: int = PWM_PERIOD_US,
         app_id: str = "humanoid_twin",
@@ -140,6 +146,7 @@ class Recorder:
         blueprint: bool = True,
         columns: Sequence[Column] = (),
         compact: bool = True,
+        stream_to: str | None = None,
     ) -> None:
         t_start = time.perf_counter()
         if isinstance(period_us, bool) or not isinstance(period_us, int) or period_us <= 0:
@@ -176,7 +183,6 @@ class Recorder:
         self.wall_s = 0.0
         self._closed = False
         self._sending = False
-        self.compact = compact
         self.size_before_compaction: int | None = None
         self.compaction_error: str | None = None   # why the compaction at close kept the file as is
         self.compact_s = 0.0          # wall time of the compaction at close (not in wall_s)
@@ -185,16 +191,23 @@ class Recorder:
 
         self._layout((*_supervisor_columns(twin), *columns))
         self._alloc()
-        self.path = _check_path(path)          # the last check, the first thing created
+        if path is None and stream_to is None:
+            raise ValueError("a recorder writes a file, streams to a viewer (stream_to), or both")
+        self.stream_to = stream_to
+        self.compact = compact and path is not None
+        self.path = None if path is None else _check_path(path)   # the last check, the first thing created
         self.rec = rr.RecordingStream(app_id, recording_id=uuid.uuid4())
         bp = default_blueprint(self.scus, self._master_paths) if blueprint else None
         try:
             # compact: no footer while recording (rerun's file sink keeps the footer's index of
             # every chunk in memory until the end: RSS grew ~0.13 MB per simulated second with
             # it); the compaction at close writes the file again, compacted, with its footer.
-            self.rec.save(self.path, default_blueprint=bp, write_footer=not compact)
+            sinks: list[Any] = [] if self.path is None else [rr.FileSink(self.path, write_footer=not compact)]
+            if stream_to is not None:
+                sinks.append(rr.GrpcSink(stream_to))
+            self.rec.set_sinks(*sinks, default_blueprint=bp)
         except RuntimeError as exc:
-            raise OSError(f"cannot write the recording {str(self.path)!r}: {exc}") from exc
+            raise OSError(f"cannot write the recording {str(self.path or stream_to)!r}: {exc}") from exc
         atexit.register(self.close)
         try:
             self._log_static()

@@ -5,6 +5,11 @@ server binds 127.0.0.1 (rerun's default, ``::``, would listen on every interface
 ``humanoid-twin view --web FILE.rrd`` serves rerun's web viewer over HTTP on 127.0.0.1 and prints
 the URL to open in a browser; the file is served by a gRPC server on 127.0.0.1 too. Nothing
 listens beyond the machine. docs/recording.md, "Viewing".
+
+Live (``serve --viewer`` / ``--connect``, docs/serve.md): :func:`spawn_live_viewer` starts the
+native viewer with its gRPC server on a free loopback port, :func:`live_url` turns ``--connect``'s
+address into a viewer's gRPC URL (loopback only) once something listens there; the recorder then
+streams to it (``Recorder(stream_to=URL)``).
 """
 
 from __future__ import annotations
@@ -17,7 +22,7 @@ import subprocess
 import sys
 
 __all__ = ["LOOPBACK", "ViewerError", "check_port_free", "native_viewer_command", "web_viewer_command",
-           "web_url", "view"]
+           "web_url", "view", "grpc_url", "live_url", "spawn_live_viewer", "DEFAULT_CONNECT"]
 
 LOOPBACK = "127.0.0.1"
 DEFAULT_WEB_PORT = 9090
@@ -55,6 +60,78 @@ def web_url(web_port: int = DEFAULT_WEB_PORT, grpc_port: int = DEFAULT_GRPC_PORT
     (headless Chromium with SwiftShader stays at "Loading ... 100%"), where WebGL renders."""
     proxy = f"rerun%2Bhttp%3A%2F%2F{LOOPBACK}%3A{grpc_port}%2Fproxy"
     return f"http://{LOOPBACK}:{web_port}/?url={proxy}&renderer=webgl"
+
+
+DEFAULT_CONNECT = f"{LOOPBACK}:{DEFAULT_GRPC_PORT}"     # rerun's own default viewer address
+LIVE_VIEWER_START_S = 20.0      # the spawned viewer's gRPC server listens within this (wall s)
+
+
+def grpc_url(host: str, port: int) -> str:
+    """The rerun gRPC URL of a viewer listening on ``host``:``port``."""
+    return f"rerun+http://{f'[{host}]' if ':' in host else host}:{port}/proxy"
+
+
+def _listening(host: str, port: int, timeout_s: float = 1.0) -> bool:
+    try:
+        with socket.create_connection((host, port), timeout=timeout_s):
+            return True
+    except OSError:
+        return False
+
+
+def live_url(addr: str) -> str:
+    """``--connect``'s ``addr`` (``HOST:PORT``, ``PORT``, or ``rerun+http://HOST:PORT/proxy``) as
+    a gRPC URL; :class:`ViewerError` (one line) when it is not a loopback address (the recording
+    is not sent off the machine) or when nothing listens there."""
+    import ipaddress
+    from urllib.parse import urlsplit
+
+    text = addr.strip()
+    if "://" not in text:
+        text = f"rerun+http://{text if ':' in text else f'{LOOPBACK}:{text}'}/proxy"
+    try:
+        parts = urlsplit(text)
+        host, port = parts.hostname, parts.port
+    except ValueError as exc:
+        raise ViewerError(f"--connect {addr}: not HOST:PORT or a rerun+http:// URL ({exc})") from None
+    if parts.scheme not in ("rerun", "rerun+http") or not host or port is None:
+        raise ViewerError(f"--connect {addr}: expected HOST:PORT (default {DEFAULT_CONNECT}) or "
+                          "rerun+http://HOST:PORT/proxy")
+    try:
+        infos = socket.getaddrinfo(host, port, 0, socket.SOCK_STREAM)
+    except (socket.gaierror, UnicodeError) as exc:
+        raise ViewerError(f"--connect {addr}: not an address or a known host name ({exc})") from None
+    if not all(ipaddress.ip_address(info[4][0].split("%")[0]).is_loopback for info in infos):
+        raise ViewerError(f"--connect {addr}: not a loopback address; the live recording is only sent "
+                          f"to a viewer on this machine (e.g. {DEFAULT_CONNECT})")
+    if not _listening(host, port):
+        raise ViewerError(f"--connect {addr}: no viewer listens there; start one first "
+                          f"(rerun --bind {LOOPBACK} --port {port}), or use --viewer")
+    return grpc_url(host, port)
+
+
+def spawn_live_viewer() -> tuple[subprocess.Popen, str]:
+    """Start rerun's native viewer (its own process, left open when the caller ends) with its
+    gRPC server on a free loopback port; returns the process and the URL to stream to, once it
+    listens. :class:`ViewerError` without a display or when it does not start."""
+    import time
+
+    if not has_display():
+        raise ViewerError("--viewer needs a display (DISPLAY/WAYLAND_DISPLAY unset): stream to a viewer "
+                          "elsewhere on this machine with --connect, or record with --out and open it "
+                          "later with `humanoid-twin view --web FILE.rrd`")
+    port = free_loopback_port()
+    proc = subprocess.Popen([*_rerun(), "--bind", LOOPBACK, "--port", str(port)], stdin=subprocess.DEVNULL,
+                            start_new_session=True)       # Ctrl-C on serve does not close the window
+    deadline = time.monotonic() + LIVE_VIEWER_START_S
+    while not _listening(LOOPBACK, port, 0.2):
+        if proc.poll() is not None or time.monotonic() > deadline:
+            if proc.poll() is None:
+                proc.kill()
+            raise ViewerError(f"rerun's viewer did not start (exit code {proc.poll()}); without a usable "
+                              "display use --connect or --out")
+        time.sleep(0.1)
+    return proc, grpc_url(LOOPBACK, port)
 
 
 def check_port_free(port: int, what: str) -> None:
