@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING
 import can
 
 from humanoid_twin.bus.confinement import ErrorConfinement
-from humanoid_twin.bus.frames import filters_accept
+from humanoid_twin.bus.frames import Frame, as_message, filters_accept
 from humanoid_twin.clock import US_PER_S
 
 if TYPE_CHECKING:
@@ -38,9 +38,10 @@ class ForeignPath(ErrorConfinement):
 
     __slots__ = ()
 
-    def _send_and_drain(self, ctrl: CanController, msg: can.Message, t_us: int) -> None:
-        """Another python-can interface: put the frame on the sender's bus, drain the others."""
-        ctrl.bus.send(msg)
+    def _send_and_drain(self, ctrl: CanController, msg: Frame | can.Message, t_us: int) -> None:
+        """Another python-can interface: put the frame on the sender's bus (as a python-can
+        message), drain the others."""
+        ctrl.bus.send(as_message(msg))
         ts = t_us / US_PER_S
         socket_like = self.interface != "virtual"
         for c in self._nodes:

@@ -21,6 +21,8 @@ from __future__ import annotations
 
 from functools import lru_cache
 
+import can
+
 from humanoid_twin.protocol.canframes import STD_ID_MAX
 
 CRC15_POLY = 0x4599
@@ -178,6 +180,65 @@ def frame_bits(arbitration_id: int, data: bytes) -> int:
 def max_frame_bits(n_bytes: int) -> int:
     """Worst-case length of a standard data frame of ``n_bytes`` (Davis et al. 2007), incl. IFS."""
     return 47 + 8 * n_bytes + (34 + 8 * n_bytes - 1) // 4
+
+
+# -- the frame record of the wire's per-frame path -------------------------------------------------
+class Frame:
+    """A standard data frame as the wire carries it between the twin's own nodes: the core's own
+    record (a C struct in the compiled core), with python-can's attribute names, so a receive
+    interrupt reads it as it would read a :class:`can.Message` (``arbitration_id``, ``dlc``,
+    ``data``, ``timestamp``, ``channel``, ``is_rx``; ``is_extended_id``, ``is_remote_frame``,
+    ``is_error_frame`` and ``is_fd`` are always False).
+
+    ``data`` is ``bytes`` (0..8). :meth:`CanController.load_tx` builds (or reloads) one; the wire
+    stamps it at the end of its EOF. A listener, a logger, a foreign python-can bus and a tool's
+    bus on the same channel get a :class:`can.Message` instead (:meth:`to_message`), built only
+    for them."""
+
+    __slots__ = ("arbitration_id", "dlc", "data", "timestamp", "channel", "is_rx")
+
+    is_extended_id = False
+    is_remote_frame = False
+    is_error_frame = False
+    is_fd = False
+
+    def __init__(self, arbitration_id: int, data: bytes = b"", timestamp: float = 0.0,
+                 channel: object = None, is_rx: bool = False) -> None:
+        self.arbitration_id = arbitration_id
+        self.data = bytes(data)
+        self.dlc = len(self.data)
+        self.timestamp = timestamp
+        self.channel = channel
+        self.is_rx = is_rx
+
+    def __repr__(self) -> str:
+        return (f"Frame(0x{self.arbitration_id:03X}, [{self.data.hex(' ').upper()}], "
+                f"t={self.timestamp!r}, channel={self.channel!r})")
+
+    def to_message(self) -> can.Message:
+        """The frame as a new :class:`can.Message` (standard id, ``data`` a bytes copy)."""
+        return can.Message(timestamp=self.timestamp, arbitration_id=self.arbitration_id,
+                           is_extended_id=False, channel=self.channel, dlc=self.dlc,
+                           data=self.data, is_rx=self.is_rx)
+
+
+def load_frame(frame: Frame | None, arbitration_id: int, data: bytes) -> Frame:
+    """``frame`` reloaded with ``arbitration_id`` and ``data`` (``bytes``, 0..8, checked by the
+    caller), unsent (no timestamp, no channel); a new frame when ``frame`` is None."""
+    if frame is None:
+        frame = Frame.__new__(Frame)
+    frame.arbitration_id = arbitration_id
+    frame.data = data
+    frame.dlc = len(data)
+    frame.timestamp = 0.0
+    frame.channel = None
+    frame.is_rx = False
+    return frame
+
+
+def as_message(msg: Frame | can.Message) -> can.Message:
+    """``msg`` as a :class:`can.Message` for python-can code (a :class:`Frame` converted)."""
+    return msg.to_message() if type(msg) is Frame else msg
 
 
 # -- acceptance filtering (the one place it is parsed and matched) ------------------------------
