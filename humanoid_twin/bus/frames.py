@@ -35,53 +35,6 @@ EOF_BITS = 7
 TRAILING_RECESSIVE_BITS = 11
 
 
-def crc15(bits: list[int]) -> int:
-    """CRC-15/CAN of a bit sequence (MSB first, initial value 0)."""
-    crc = 0
-    for b in bits:
-        nxt = b ^ ((crc >> 14) & 1)
-        crc = (crc << 1) & 0x7FFF
-        if nxt:
-            crc ^= CRC15_POLY
-    return crc
-
-
-def unstuffed_bits(arbitration_id: int, data: bytes) -> list[int]:
-    """The bits SOF..CRC of a standard data frame, before stuffing."""
-    if not 0 <= arbitration_id <= STD_ID_MAX:
-        raise ValueError(f"standard CAN ID must be 0..0x7FF, got {arbitration_id:#x}")
-    n = len(data)
-    if n > 8:
-        raise ValueError(f"a CAN 2.0 data frame carries at most 8 bytes, got {n}")
-    bits = [0]  # SOF (dominant)
-    bits += [(arbitration_id >> (10 - i)) & 1 for i in range(11)]
-    bits += [0, 0, 0]  # RTR (data frame), IDE (standard), r0
-    bits += [(n >> (3 - i)) & 1 for i in range(4)]
-    for byte in data:
-        bits += [(byte >> (7 - i)) & 1 for i in range(8)]
-    crc = crc15(bits)
-    bits += [(crc >> (14 - i)) & 1 for i in range(15)]
-    return bits
-
-
-def count_stuff_bits(bits: list[int]) -> int:
-    """Number of stuff bits a transmitter inserts into ``bits``."""
-    stuffed = 0
-    run_val = -1
-    run_len = 0
-    for b in bits:
-        if b == run_val:
-            run_len += 1
-        else:
-            run_val = b
-            run_len = 1
-        if run_len == 5:
-            stuffed += 1
-            run_val = 1 - b  # the stuff bit starts a new run
-            run_len = 1
-    return stuffed
-
-
 def _crc15_table() -> tuple[int, ...]:
     table = []
     for byte in range(256):
@@ -100,7 +53,8 @@ def _stuff_table() -> tuple[int, ...]:
     # bit ends: its value and its length 1..4 (a fifth equal bit gets a stuff bit of the other
     # value, which starts a run of length 1), state = value * 4 + length - 1, 0..7.
     # Entry [state << 8 | byte] = stuff bits inserted into those 8 bits (MSB first) << 3 | the
-    # state after them (count_stuff_bits, a byte at a time).
+    # state after them. (The one statement of the stuffing rule; tests/test_bus_can.py checks
+    # the frame length against a bit-level reference written from the rule.)
     table = []
     for state in range(8):
         for byte in range(256):
@@ -128,9 +82,9 @@ _STUFF_TABLE = _stuff_table()
 
 def _frame_bits(arbitration_id: int, data: bytes) -> int:
     """:func:`frame_bits` of a ``bytes`` payload, computed (no cache): the CRC a byte at a time
-    from a table, the stuff bits a byte at a time from the stuffing automaton's table. The same
-    result as ``len(unstuffed_bits) + count_stuff_bits + TRAILER_BITS`` (tested); the compiled
-    core calls it directly (a C function on C integers, cheaper than the cache's lookup)."""
+    from a table, the stuff bits a byte at a time from the stuffing automaton's table (the same
+    length as a bit-level reference, tests/test_bus_can.py); the compiled core calls it directly
+    (a C function on C integers, cheaper than the cache's lookup)."""
     if not 0 <= arbitration_id <= STD_ID_MAX:
         raise ValueError(f"standard CAN ID must be 0..0x7FF, got {arbitration_id:#x}")
     n = len(data)
