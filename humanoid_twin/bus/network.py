@@ -51,10 +51,9 @@ from humanoid_twin.bus.frames import (
 )
 from humanoid_twin.bus.twin_bus import RxPort, TwinBus, get_medium, release_medium
 from humanoid_twin.clock import US_PER_S, Clock
-from humanoid_twin.protocol.canframes import STD_ID_MAX
+from humanoid_twin.protocol.canframes import CAN_BITRATE, PIC_TX_BUFFERS, STD_ID_MAX
 
 TWIN_INTERFACE = "humanoid_twin"
-PIC_TX_BUFFERS = 3              # PIC18F258: TXB0..TXB2 (seed 002 slide 21)
 EXTERNAL_TX_QUEUE = 64          # an outside python-can bus (a tool): a socketcan-like TX queue
 
 # error frame after a CRC error: detected after the ACK delimiter, 6-bit error flag, 8-bit
@@ -223,13 +222,14 @@ class CanNetwork(ForeignPath):
     :param interface: ``"humanoid_twin"`` (default, filtered zero-copy delivery), ``"virtual"``
         or ``"socketcan"`` (then ``channel`` is e.g. ``"vcan0"``), or any python-can interface.
     :param channel: channel name; None gives a fresh unique name.
-    :param bitrate: bits per second (1 Mbit/s on the robot, seed 002 slide 15).
+    :param bitrate: bits per second (:data:`~humanoid_twin.protocol.canframes.CAN_BITRATE`,
+        1 Mbit/s on the robot, also the PIC's highest).
     """
 
     def __init__(self, clock: Clock, interface: str = TWIN_INTERFACE, channel: str | None = None,
-                 bitrate: int = 1_000_000) -> None:
-        if not isinstance(bitrate, int) or not 0 < bitrate <= 1_000_000:
-            raise ValueError(f"CAN bitrate must be an int in 1..1_000_000 bit/s, got {bitrate!r}")
+                 bitrate: int = CAN_BITRATE) -> None:
+        if not isinstance(bitrate, int) or not 0 < bitrate <= CAN_BITRATE:
+            raise ValueError(f"CAN bitrate must be an int in 1..{CAN_BITRATE} bit/s, got {bitrate!r}")
         if interface != TWIN_INTERFACE and interface not in can.VALID_INTERFACES:
             raise ValueError(f"unknown python-can interface {interface!r} "
                              f"(known: {', '.join(sorted(can.VALID_INTERFACES))})")

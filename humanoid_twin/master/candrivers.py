@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from humanoid_twin.protocol.canframes import packet_index
+from humanoid_twin.protocol.canframes import PIC_RX_BUFFERS, PIC_TX_BUFFERS, packet_index
 
 if TYPE_CHECKING:
     from collections.abc import Callable
@@ -19,9 +19,6 @@ if TYPE_CHECKING:
     import can
 
     from humanoid_twin.bus.network import CanController, CanNetwork
-
-N_TX_BUFFERS = 3
-N_RX_BUFFERS = 2
 
 
 class CanDriverError(RuntimeError):
@@ -35,8 +32,8 @@ class CanDrivers:
         self.network = network
         self.name = name
         self.controller: CanController | None = None
-        self.rxb: list[can.Message | None] = [None] * N_RX_BUFFERS    # RXB0, RXB1 (full = not None)
-        self.txb: list[can.Message | None] = [None] * N_TX_BUFFERS    # last message requested per TXBn
+        self.rxb: list[can.Message | None] = [None] * PIC_RX_BUFFERS  # RXB0, RXB1 (full = not None)
+        self.txb: list[can.Message | None] = [None] * PIC_TX_BUFFERS  # last message requested per TXBn
         self.rx_overflows = 0
 
     def myCANInitialize(self, can_filters: list[dict], on_rx: Callable[[can.Message], None]) -> CanController:

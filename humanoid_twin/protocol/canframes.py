@@ -52,6 +52,9 @@ __all__ = [
     "PayloadError",
     "SlaveStatus",
     "STD_ID_MAX",
+    "CAN_BITRATE",
+    "PIC_TX_BUFFERS",
+    "PIC_RX_BUFFERS",
     "can_id",
     "split_id",
     "packet_index",
@@ -89,6 +92,12 @@ CURRENT_MAX = 100       # Curr1..3 are 0..100 (seed 000 finalizeServoMeasures, d
 
 # Identifier layout (slide 18): bits 10-7 source, 6-3 destination, 2 packet index, 1-0 operation.
 STD_ID_MAX = 0x7FF      # an 11-bit standard identifier
+
+# The PIC18F258's CAN module (seed 002 slide 21): bit rates up to 1 Mbit/s, the robot's bus rate
+# (docs/buses.md); 3 prioritized TX buffers and 2 RX buffers (their use: slide 24).
+CAN_BITRATE = 1_000_000
+PIC_TX_BUFFERS = 3
+PIC_RX_BUFFERS = 2
 _SRC_SHIFT = 7
 _DST_SHIFT = 3
 _INDEX_SHIFT = 2
