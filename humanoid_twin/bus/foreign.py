@@ -4,7 +4,8 @@ With ``--can-interface virtual`` (or socketcan on a vcan channel) each node owns
 python-can bus of that interface; the wire's virtual-time timing and arbitration stay the
 twin's own (``network.py``): at the end of each frame the sender's bus sends it and every other
 node's bus is drained, and the frames it receives (filtered by python-can, or by the kernel on
-socketcan) reach the node's receive interrupt stamped with the virtual time. The frames and
+socketcan) reach the node's receive interrupt as the wire's own frames
+(:class:`~humanoid_twin.bus.frames.Frame`), stamped with the virtual time. The frames and
 their instants are the same as on the default ``humanoid_twin`` interface (tests/test_bus_can.py).
 """
 
@@ -56,7 +57,5 @@ class ForeignPath(ErrorConfinement):
                 if m is None:
                     break
                 expected = False
-                m.timestamp = ts
-                m.channel = self.channel
-                c._on_frame(m)
+                c._on_frame(Frame(m.arbitration_id, m.data, ts, self.channel, True))
 

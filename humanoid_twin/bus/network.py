@@ -85,7 +85,7 @@ class CanController:
         "_rec_count", "_rec_mark", "_filt", "_external", "_loaded", "_loaded_bits", "_port",
     )
 
-    def __init__(self, network: CanNetwork, name: str, on_rx: Callable[[can.Message], None] | None,
+    def __init__(self, network: CanNetwork, name: str, on_rx: Callable[[Frame], None] | None,
                  tx_buffers: int = PIC_TX_BUFFERS, external: bool = False) -> None:
         if on_rx is None:
             on_rx = _ignore
@@ -204,7 +204,7 @@ class CanController:
         return ERROR_STATE_CODE[self.state]
 
     # -- receive interrupt ---------------------------------------------------------------------
-    def _on_frame(self, msg: can.Message) -> None:
+    def _on_frame(self, msg: Frame) -> None:
         """Used when draining another python-can interface (the twin bus calls on_rx directly)."""
         if not self._off:
             self._on_rx(msg)
@@ -287,8 +287,10 @@ class CanNetwork(ForeignPath):
 
     # -- setup -------------------------------------------------------------------------------
     def attach(self, name: str, can_filters: list[dict] | None,
-               on_rx: Callable[[can.Message], None], rx_ids: Collection[int] | None = None) -> CanController:
-        """Connect a node: its acceptance filters (slide 23) and its RX interrupt ``on_rx``.
+               on_rx: Callable[[Frame], None], rx_ids: Collection[int] | None = None) -> CanController:
+        """Connect a node: its acceptance filters (slide 23) and its RX interrupt ``on_rx``, called
+        with each frame as a :class:`~humanoid_twin.bus.frames.Frame` (python-can's attribute
+        names; on every interface, and for frames a tool sent as a ``can.Message``).
 
         ``rx_ids``: the standard identifiers ``on_rx`` acts on, when the filters let in more
         (a Slave's mask lets in every Master frame; its ``lowISR`` drops the frames for other

@@ -5,6 +5,7 @@
 # supervisor tests and the fault tests read is public.
 cimport cython
 
+from humanoid_twin.bus.frames cimport Frame
 from humanoid_twin.bus.network cimport CanController
 from humanoid_twin.clock cimport Clock
 from humanoid_twin.protocol.canframes cimport (
@@ -59,7 +60,7 @@ cdef class SlaveCan:
     cdef public object on_stop
 
     @cython.locals(now=cython.longlong, due=cython.longlong)
-    cpdef lowISR(self, object msg)
+    cpdef lowISR(self, Frame msg)
     cpdef _isr_send(self)
     @cython.locals(act=Actuators, sys_=ActuatorStatus, st=SensorStatus, a0=ActuatorServo,
                    a1=ActuatorServo, a2=ActuatorServo, c0=Control, c1=Control, c2=Control, pwm=bint,
