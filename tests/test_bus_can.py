@@ -529,6 +529,40 @@ def test_python_can_tool_joins_the_channel():
         tool.send(std(1))
 
 
+def test_python_can_sees_messages_and_the_nodes_the_wires_frames():
+    """The wire carries its own frame record between its nodes (load_tx's Frame, python-can's
+    attribute names); a listener, a tool's recv() and a tool's rx_callback get can.Message
+    objects with the same id, bytes, virtual timestamp and channel."""
+    from humanoid_twin.bus.frames import Frame
+    from humanoid_twin.bus.twin_bus import TwinBus
+
+    class Sink(can.Listener):
+        def on_message_received(self, msg: can.Message) -> None:
+            got.append(("listener", msg))
+
+    clock, net, nodes, rec = make_net(n_slaves=1)
+    got: list[tuple[str, object]] = []
+    net.add_listener(Sink())
+    net.attach("isr", None, lambda m: got.append(("isr", m)))
+    tool = TwinBus(net.channel, rx_callback=lambda m: got.append(("tool", m)))
+    reader = can.Bus(interface="humanoid_twin", channel=net.channel)
+    try:
+        frame = nodes[1].load_tx(None, sens_id(1, 1), b"\x10\x20\x30")
+        assert nodes[1].send(frame)
+        clock.run_until(500)
+        got.append(("recv", reader.recv(timeout=0)))
+        t = (frame_bits(sens_id(1, 1), b"\x10\x20\x30") - 3) / 1e6
+        kinds = {k: type(m) for k, m in got}
+        assert kinds == {"isr": Frame, "listener": can.Message, "tool": can.Message, "recv": can.Message}
+        assert dict(got)["isr"] is frame
+        for _, m in got:
+            assert (m.arbitration_id, bytes(m.data), m.dlc, m.timestamp, m.channel, m.is_extended_id) == (
+                sens_id(1, 1), b"\x10\x20\x30", 3, t, net.channel, False)
+    finally:
+        tool.shutdown()
+        reader.shutdown()
+
+
 def test_standalone_channel_without_network_delivers_immediately():
     a = can.Bus(interface="humanoid_twin", channel="standalone-test")
     b = can.Bus(interface="humanoid_twin", channel="standalone-test",

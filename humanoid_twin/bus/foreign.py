@@ -4,7 +4,8 @@ With ``--can-interface virtual`` (or socketcan on a vcan channel) each node owns
 python-can bus of that interface; the wire's virtual-time timing and arbitration stay the
 twin's own (``network.py``): at the end of each frame the sender's bus sends it and every other
 node's bus is drained, and the frames it receives (filtered by python-can, or by the kernel on
-socketcan) reach the node's receive interrupt stamped with the virtual time. The frames and
+socketcan) reach the node's receive interrupt as the wire's own frames
+(:class:`~humanoid_twin.bus.frames.Frame`), stamped with the virtual time. The frames and
 their instants are the same as on the default ``humanoid_twin`` interface (tests/test_bus_can.py).
 """
 
@@ -15,7 +16,7 @@ from typing import TYPE_CHECKING
 import can
 
 from humanoid_twin.bus.confinement import ErrorConfinement
-from humanoid_twin.bus.frames import filters_accept
+from humanoid_twin.bus.frames import Frame, as_message, filters_accept
 from humanoid_twin.clock import US_PER_S
 
 if TYPE_CHECKING:
@@ -38,9 +39,10 @@ class ForeignPath(ErrorConfinement):
 
     __slots__ = ()
 
-    def _send_and_drain(self, ctrl: CanController, msg: can.Message, t_us: int) -> None:
-        """Another python-can interface: put the frame on the sender's bus, drain the others."""
-        ctrl.bus.send(msg)
+    def _send_and_drain(self, ctrl: CanController, msg: Frame | can.Message, t_us: int) -> None:
+        """Another python-can interface: put the frame on the sender's bus (as a python-can
+        message), drain the others."""
+        ctrl.bus.send(as_message(msg))
         ts = t_us / US_PER_S
         socket_like = self.interface != "virtual"
         for c in self._nodes:
@@ -55,7 +57,5 @@ class ForeignPath(ErrorConfinement):
                 if m is None:
                     break
                 expected = False
-                m.timestamp = ts
-                m.channel = self.channel
-                c._on_frame(m)
+                c._on_frame(Frame(m.arbitration_id, m.data, ts, self.channel, True))
 

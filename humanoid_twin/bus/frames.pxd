@@ -12,3 +12,17 @@ cdef unsigned char _STUFF_TABLE[2048]
 @cython.locals(n=cython.longlong, head=cython.longlong, byte=cython.long, crc=cython.long,
                e=cython.long, s=cython.long, stuffed=cython.long, i=cython.longlong)
 cpdef long long _frame_bits(long long arbitration_id, bytes data) except -1
+
+
+cdef class Frame:
+    cdef public long arbitration_id
+    cdef public long dlc
+    cdef public bytes data
+    cdef public double timestamp
+    cdef public object channel
+    cdef public bint is_rx
+
+    cpdef object to_message(self)
+
+cpdef Frame load_frame(Frame frame, long arbitration_id, bytes data)
+cpdef object as_message(object msg)

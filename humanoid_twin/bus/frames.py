@@ -21,6 +21,8 @@ from __future__ import annotations
 
 from functools import lru_cache
 
+import can
+
 from humanoid_twin.protocol.canframes import STD_ID_MAX
 
 CRC15_POLY = 0x4599
@@ -31,53 +33,6 @@ EOF_BITS = 7
 # recessive bits at the end of every frame (ACK delimiter + EOF + IFS): one "11 recessive bits"
 # occurrence for bus-off recovery (seed 000 checkCan)
 TRAILING_RECESSIVE_BITS = 11
-
-
-def crc15(bits: list[int]) -> int:
-    """CRC-15/CAN of a bit sequence (MSB first, initial value 0)."""
-    crc = 0
-    for b in bits:
-        nxt = b ^ ((crc >> 14) & 1)
-        crc = (crc << 1) & 0x7FFF
-        if nxt:
-            crc ^= CRC15_POLY
-    return crc
-
-
-def unstuffed_bits(arbitration_id: int, data: bytes) -> list[int]:
-    """The bits SOF..CRC of a standard data frame, before stuffing."""
-    if not 0 <= arbitration_id <= STD_ID_MAX:
-        raise ValueError(f"standard CAN ID must be 0..0x7FF, got {arbitration_id:#x}")
-    n = len(data)
-    if n > 8:
-        raise ValueError(f"a CAN 2.0 data frame carries at most 8 bytes, got {n}")
-    bits = [0]  # SOF (dominant)
-    bits += [(arbitration_id >> (10 - i)) & 1 for i in range(11)]
-    bits += [0, 0, 0]  # RTR (data frame), IDE (standard), r0
-    bits += [(n >> (3 - i)) & 1 for i in range(4)]
-    for byte in data:
-        bits += [(byte >> (7 - i)) & 1 for i in range(8)]
-    crc = crc15(bits)
-    bits += [(crc >> (14 - i)) & 1 for i in range(15)]
-    return bits
-
-
-def count_stuff_bits(bits: list[int]) -> int:
-    """Number of stuff bits a transmitter inserts into ``bits``."""
-    stuffed = 0
-    run_val = -1
-    run_len = 0
-    for b in bits:
-        if b == run_val:
-            run_len += 1
-        else:
-            run_val = b
-            run_len = 1
-        if run_len == 5:
-            stuffed += 1
-            run_val = 1 - b  # the stuff bit starts a new run
-            run_len = 1
-    return stuffed
 
 
 def _crc15_table() -> tuple[int, ...]:
@@ -98,7 +53,8 @@ def _stuff_table() -> tuple[int, ...]:
     # bit ends: its value and its length 1..4 (a fifth equal bit gets a stuff bit of the other
     # value, which starts a run of length 1), state = value * 4 + length - 1, 0..7.
     # Entry [state << 8 | byte] = stuff bits inserted into those 8 bits (MSB first) << 3 | the
-    # state after them (count_stuff_bits, a byte at a time).
+    # state after them. (The one statement of the stuffing rule; tests/test_bus_can.py checks
+    # the frame length against a bit-level reference written from the rule.)
     table = []
     for state in range(8):
         for byte in range(256):
@@ -126,9 +82,9 @@ _STUFF_TABLE = _stuff_table()
 
 def _frame_bits(arbitration_id: int, data: bytes) -> int:
     """:func:`frame_bits` of a ``bytes`` payload, computed (no cache): the CRC a byte at a time
-    from a table, the stuff bits a byte at a time from the stuffing automaton's table. The same
-    result as ``len(unstuffed_bits) + count_stuff_bits + TRAILER_BITS`` (tested); the compiled
-    core calls it directly (a C function on C integers, cheaper than the cache's lookup)."""
+    from a table, the stuff bits a byte at a time from the stuffing automaton's table (the same
+    length as a bit-level reference, tests/test_bus_can.py); the compiled core calls it directly
+    (a C function on C integers, cheaper than the cache's lookup)."""
     if not 0 <= arbitration_id <= STD_ID_MAX:
         raise ValueError(f"standard CAN ID must be 0..0x7FF, got {arbitration_id:#x}")
     n = len(data)
@@ -178,6 +134,65 @@ def frame_bits(arbitration_id: int, data: bytes) -> int:
 def max_frame_bits(n_bytes: int) -> int:
     """Worst-case length of a standard data frame of ``n_bytes`` (Davis et al. 2007), incl. IFS."""
     return 47 + 8 * n_bytes + (34 + 8 * n_bytes - 1) // 4
+
+
+# -- the frame record of the wire's per-frame path -------------------------------------------------
+class Frame:
+    """A standard data frame as the wire carries it between the twin's own nodes: the core's own
+    record (a C struct in the compiled core), with python-can's attribute names, so a receive
+    interrupt reads it as it would read a :class:`can.Message` (``arbitration_id``, ``dlc``,
+    ``data``, ``timestamp``, ``channel``, ``is_rx``; ``is_extended_id``, ``is_remote_frame``,
+    ``is_error_frame`` and ``is_fd`` are always False).
+
+    ``data`` is ``bytes`` (0..8). :meth:`CanController.load_tx` builds (or reloads) one; the wire
+    stamps it at the end of its EOF. A listener, a logger, a foreign python-can bus and a tool's
+    bus on the same channel get a :class:`can.Message` instead (:meth:`to_message`), built only
+    for them."""
+
+    __slots__ = ("arbitration_id", "dlc", "data", "timestamp", "channel", "is_rx")
+
+    is_extended_id = False
+    is_remote_frame = False
+    is_error_frame = False
+    is_fd = False
+
+    def __init__(self, arbitration_id: int, data: bytes = b"", timestamp: float = 0.0,
+                 channel: object = None, is_rx: bool = False) -> None:
+        self.arbitration_id = arbitration_id
+        self.data = bytes(data)
+        self.dlc = len(self.data)
+        self.timestamp = timestamp
+        self.channel = channel
+        self.is_rx = is_rx
+
+    def __repr__(self) -> str:
+        return (f"Frame(0x{self.arbitration_id:03X}, [{self.data.hex(' ').upper()}], "
+                f"t={self.timestamp!r}, channel={self.channel!r})")
+
+    def to_message(self) -> can.Message:
+        """The frame as a new :class:`can.Message` (standard id, ``data`` a bytes copy)."""
+        return can.Message(timestamp=self.timestamp, arbitration_id=self.arbitration_id,
+                           is_extended_id=False, channel=self.channel, dlc=self.dlc,
+                           data=self.data, is_rx=self.is_rx)
+
+
+def load_frame(frame: Frame | None, arbitration_id: int, data: bytes) -> Frame:
+    """``frame`` reloaded with ``arbitration_id`` and ``data`` (``bytes``, 0..8, checked by the
+    caller), unsent (no timestamp, no channel); a new frame when ``frame`` is None."""
+    if frame is None:
+        frame = Frame.__new__(Frame)
+    frame.arbitration_id = arbitration_id
+    frame.data = data
+    frame.dlc = len(data)
+    frame.timestamp = 0.0
+    frame.channel = None
+    frame.is_rx = False
+    return frame
+
+
+def as_message(msg: Frame | can.Message) -> can.Message:
+    """``msg`` as a :class:`can.Message` for python-can code (a :class:`Frame` converted)."""
+    return msg.to_message() if type(msg) is Frame else msg
 
 
 # -- acceptance filtering (the one place it is parsed and matched) ------------------------------

@@ -5,7 +5,7 @@
 # CanController``; then a ``cdef public CanController controller`` attribute or a typed local
 # makes these calls C calls):
 #   send(msg) -> bint, send_at(msg, t_us) -> bint, abort() -> long long (frames dropped),
-#   load_tx(msg, arbitration_id, payload) -> the can.Message to send, clear_status().
+#   load_tx(frame, arbitration_id, payload) -> the Frame to send (bus/frames.pxd), clear_status().
 # ``pending`` stays a Python property (for C code: ``_n_pending`` is the wire's own field).
 # The clock's C calls for the boards are in clock.pxd (``Clock.due_by(t_us)``: is an event due
 # at or before t_us).
@@ -16,6 +16,8 @@ from humanoid_twin.bus.twin_bus cimport RxPort
 # the frame length, computed in C on every call (cheaper than the lru_cache the interpreted
 # source puts in front of it under this name: frames.py)
 from humanoid_twin.bus.frames cimport _frame_bits as _frame_bits_cached
+# the wire's own frame record (a C struct; python-can messages only for listeners and foreign buses)
+from humanoid_twin.bus.frames cimport Frame, load_frame
 
 # the constants the per-frame path computes with, as C values
 cdef long long US_PER_S
@@ -52,7 +54,7 @@ cdef class CanController:
     cdef public long long _rec_mark
     cdef public object _filt
     cdef public bint _external
-    cdef public object _loaded
+    cdef public Frame _loaded
     cdef public long long _loaded_bits
     cdef public RxPort _port
 
@@ -61,8 +63,8 @@ cdef class CanController:
     cpdef bint send_at(self, object msg, long long t_us) except -1
     cpdef long long abort(self) except -1
     cpdef clear_status(self)
-    @cython.locals(data=bytes, n=cython.longlong)
-    cpdef object load_tx(self, object msg, int arbitration_id, object payload)
+    @cython.locals(data=bytes, n=cython.longlong, frame=Frame)
+    cpdef Frame load_tx(self, object msg, int arbitration_id, object payload)
 
 
 cdef class CanNetwork(ForeignPath):
@@ -96,7 +98,8 @@ cdef class CanNetwork(ForeignPath):
 
     cpdef long long _dur(self, long long bits) except? -1
     @cython.locals(arb=cython.longlong, bits=cython.longlong, seq=cython.longlong,
-                   now=cython.longlong, idle=cython.longlong, start=cython.longlong, clock=Clock)
+                   now=cython.longlong, idle=cython.longlong, start=cython.longlong, clock=Clock,
+                   frame=Frame)
     cpdef bint _request(self, CanController ctrl, object msg, long long at=*) except -1
     cpdef _kick(self)
     @cython.locals(e=tuple, c=CanController, req=cython.longlong, key=cython.longlong,
@@ -107,7 +110,7 @@ cdef class CanNetwork(ForeignPath):
     @cython.locals(bits=cython.longlong, outcome=cython.int, end=cython.longlong,
                    bu=cython.longlong, t_eof=cython.longlong, clock=Clock)
     cpdef _begin(self, tuple best, long long start)
-    @cython.locals(ctrl=CanController, t=cython.longlong, pending=list, idle=cython.longlong,
+    @cython.locals(ctrl=CanController, frame=Frame, t=cython.longlong, pending=list, idle=cython.longlong,
                    start=cython.longlong, clock=Clock, first=cython.longlong, e=tuple,
                    c=CanController, r=cython.longlong, sof=cython.longlong)
     cpdef _complete(self)

@@ -44,15 +44,16 @@ from humanoid_twin.bus.foreign import ForeignPath, open_foreign_bus
 from humanoid_twin.bus.frames import (
     TRAILING_RECESSIVE_BITS,
     Filters,
+    Frame,
     _frame_bits_cached,  # compiled core: the uncached C function _frame_bits instead (network.pxd)
+    load_frame,
     parse_filters,
 )
 from humanoid_twin.bus.twin_bus import RxPort, TwinBus, get_medium, release_medium
 from humanoid_twin.clock import US_PER_S, Clock
-from humanoid_twin.protocol.canframes import STD_ID_MAX
+from humanoid_twin.protocol.canframes import CAN_BITRATE, PIC_TX_BUFFERS, STD_ID_MAX
 
 TWIN_INTERFACE = "humanoid_twin"
-PIC_TX_BUFFERS = 3              # PIC18F258: TXB0..TXB2 (seed 002 slide 21)
 EXTERNAL_TX_QUEUE = 64          # an outside python-can bus (a tool): a socketcan-like TX queue
 
 # error frame after a CRC error: detected after the ACK delimiter, 6-bit error flag, 8-bit
@@ -84,7 +85,7 @@ class CanController:
         "_rec_count", "_rec_mark", "_filt", "_external", "_loaded", "_loaded_bits", "_port",
     )
 
-    def __init__(self, network: CanNetwork, name: str, on_rx: Callable[[can.Message], None] | None,
+    def __init__(self, network: CanNetwork, name: str, on_rx: Callable[[Frame], None] | None,
                  tx_buffers: int = PIC_TX_BUFFERS, external: bool = False) -> None:
         if on_rx is None:
             on_rx = _ignore
@@ -112,7 +113,7 @@ class CanController:
         self._rec_mark = 0
         self._filt: Filters | None = None
         self._external = external
-        self._loaded: can.Message | None = None   # the message load_tx built, checked, until sent
+        self._loaded: Frame | None = None          # the frame load_tx built, checked, until sent
         self._loaded_bits = 0
         self._port: RxPort | None = None           # the TwinBus's receive side (set by attach)
 
@@ -121,16 +122,18 @@ class CanController:
                 f"pending={self._n_pending})")
 
     # -- the firmware's API ------------------------------------------------------------------
-    def send(self, msg: can.Message) -> bool:
+    def send(self, msg: Frame | can.Message) -> bool:
         """Request transmission of ``msg`` now (TXREQ on a free TX buffer: myCANSendMessage).
 
         Returns False, and counts ``tx_refused``, when all 3 TX buffers are pending or the
-        node is bus-off. The message object is handed over: do not modify it until it is sent
-        or aborted (like the PIC's TX buffer registers while TXREQ is set).
+        node is bus-off. ``msg``: the :class:`~humanoid_twin.bus.frames.Frame` of
+        :meth:`load_tx`, or a :class:`can.Message` (checked, and carried as a frame of its
+        own). The frame is handed over: do not modify it until it is sent or aborted (like the
+        PIC's TX buffer registers while TXREQ is set).
         """
         return self._net._request(self, msg)
 
-    def send_at(self, msg: can.Message, t_us: int) -> bool:
+    def send_at(self, msg: Frame | can.Message, t_us: int) -> bool:
         """:meth:`send` with its TXREQ at ``t_us`` (``now <= t_us``), for a caller that knows
         nothing runs on the clock before then (``not clock.due_by(t_us)``): the same as
         scheduling an event at ``t_us`` that calls :meth:`send`, without the event (a Slave's
@@ -173,30 +176,27 @@ class CanController:
         port = self._port
         return port.rx_skipped if port is not None else 0
 
-    def load_tx(self, msg: can.Message | None, arbitration_id: int, payload: bytes) -> can.Message:
-        """The message to hand to :meth:`send`: ``msg`` reloaded with ``payload`` (like loading
-        the PIC's TXBn registers) when this controller holds none of the node's frames any more,
-        else a new message (a pending frame, or one on the wire while bus-off, must not change).
-        The frame is checked (``CanError``) and its bit length computed here, once: hand it to
-        :meth:`send` unchanged."""
+    def load_tx(self, msg: Frame | None, arbitration_id: int, payload: bytes) -> Frame:
+        """The frame to hand to :meth:`send`: ``msg`` (a :class:`~humanoid_twin.bus.frames.Frame`
+        this method returned) reloaded with ``payload`` (like loading the PIC's TXBn registers)
+        when this controller holds none of the node's frames any more, else a new frame (a
+        pending frame, or one on the wire while bus-off, must not change). The frame is checked
+        (``CanError``) and its bit length computed here, once: hand it to :meth:`send`
+        unchanged."""
         data = payload if type(payload) is bytes else bytes(payload)
         n = len(data)
         if not 0 <= arbitration_id <= STD_ID_MAX:
             raise CanError(f"{self.name}: standard CAN ID must be 0..0x7FF, got {arbitration_id:#x}")
         if n > 8:
             raise CanError(f"{self.name}: a frame carries 0..8 data bytes, got {n}")
-        if msg is None or self._n_pending or self._off:          # _off: the state is BUS_OFF
-            msg = can.Message(arbitration_id=arbitration_id, data=data, is_extended_id=False, is_rx=False)
+        if type(msg) is not Frame or self._n_pending or self._off:   # _off: the state is BUS_OFF
+            frame = load_frame(None, arbitration_id, data)
         else:
-            msg.data[:] = data
-            msg.dlc = n
-            msg.timestamp = 0.0
-            msg.channel = None
-            msg.is_rx = False
-        # checked and measured here, once: send() of this message skips both
-        self._loaded = msg
+            frame = load_frame(msg, arbitration_id, data)
+        # checked and measured here, once: send() of this frame skips both
+        self._loaded = frame
         self._loaded_bits = _frame_bits_cached(arbitration_id, data)
-        return msg
+        return frame
 
     @property
     def error_state_code(self) -> int:
@@ -204,7 +204,7 @@ class CanController:
         return ERROR_STATE_CODE[self.state]
 
     # -- receive interrupt ---------------------------------------------------------------------
-    def _on_frame(self, msg: can.Message) -> None:
+    def _on_frame(self, msg: Frame) -> None:
         """Used when draining another python-can interface (the twin bus calls on_rx directly)."""
         if not self._off:
             self._on_rx(msg)
@@ -222,13 +222,14 @@ class CanNetwork(ForeignPath):
     :param interface: ``"humanoid_twin"`` (default, filtered zero-copy delivery), ``"virtual"``
         or ``"socketcan"`` (then ``channel`` is e.g. ``"vcan0"``), or any python-can interface.
     :param channel: channel name; None gives a fresh unique name.
-    :param bitrate: bits per second (1 Mbit/s on the robot, seed 002 slide 15).
+    :param bitrate: bits per second (:data:`~humanoid_twin.protocol.canframes.CAN_BITRATE`,
+        1 Mbit/s on the robot, also the PIC's highest).
     """
 
     def __init__(self, clock: Clock, interface: str = TWIN_INTERFACE, channel: str | None = None,
-                 bitrate: int = 1_000_000) -> None:
-        if not isinstance(bitrate, int) or not 0 < bitrate <= 1_000_000:
-            raise ValueError(f"CAN bitrate must be an int in 1..1_000_000 bit/s, got {bitrate!r}")
+                 bitrate: int = CAN_BITRATE) -> None:
+        if not isinstance(bitrate, int) or not 0 < bitrate <= CAN_BITRATE:
+            raise ValueError(f"CAN bitrate must be an int in 1..{CAN_BITRATE} bit/s, got {bitrate!r}")
         if interface != TWIN_INTERFACE and interface not in can.VALID_INTERFACES:
             raise ValueError(f"unknown python-can interface {interface!r} "
                              f"(known: {', '.join(sorted(can.VALID_INTERFACES))})")
@@ -257,10 +258,10 @@ class CanNetwork(ForeignPath):
         self._recovering: list[CanController] = []
         # wire state
         # (ID << 40 | request seq, request time, controller, message, frame bits)
-        self._pending: list[tuple[int, int, CanController, can.Message, int]] = []
+        self._pending: list[tuple[int, int, CanController, Frame, int]] = []
         self._busy = False          # a decision is scheduled or a frame/error frame is on the wire
         self._start = 0             # start (SOF) of the frame being decided / on the wire
-        self._current: tuple[int, int, CanController, can.Message, int] | None = None
+        self._current: tuple[int, int, CanController, Frame, int] | None = None
         self._current_aborted = False
         self._outcome = _OK
         self._idle_from = 0         # the wire is idle from this instant (end of last IFS)
@@ -286,8 +287,10 @@ class CanNetwork(ForeignPath):
 
     # -- setup -------------------------------------------------------------------------------
     def attach(self, name: str, can_filters: list[dict] | None,
-               on_rx: Callable[[can.Message], None], rx_ids: Collection[int] | None = None) -> CanController:
-        """Connect a node: its acceptance filters (slide 23) and its RX interrupt ``on_rx``.
+               on_rx: Callable[[Frame], None], rx_ids: Collection[int] | None = None) -> CanController:
+        """Connect a node: its acceptance filters (slide 23) and its RX interrupt ``on_rx``, called
+        with each frame as a :class:`~humanoid_twin.bus.frames.Frame` (python-can's attribute
+        names; on every interface, and for frames a tool sent as a ``can.Message``).
 
         ``rx_ids``: the standard identifiers ``on_rx`` acts on, when the filters let in more
         (a Slave's mask lets in every Master frame; its ``lowISR`` drops the frames for other
@@ -429,22 +432,25 @@ class CanNetwork(ForeignPath):
         return (bits * US_PER_S + br - 1) // br
 
     # -- transmit path -----------------------------------------------------------------------
-    def _request(self, ctrl: CanController, msg: can.Message, at: int = -1) -> bool:
+    def _request(self, ctrl: CanController, msg: Frame | can.Message, at: int = -1) -> bool:
         """TXREQ of ``msg`` by ``ctrl`` now (or at ``at``, :meth:`CanController.send_at`)."""
         if ctrl._off or ctrl._n_pending >= ctrl._tx_buffers:
             ctrl.tx_refused += 1
             return False
-        arb = msg.arbitration_id
         if msg is ctrl._loaded:          # built by load_tx: already checked, its length known
             ctrl._loaded = None
+            frame = msg
             bits = ctrl._loaded_bits
         else:
             bits = self._checked_bits(ctrl, msg)
+            # the wire carries frames of its own: a python-can message is copied into one
+            frame = msg if type(msg) is Frame else Frame(msg.arbitration_id, msg.data)
+        arb = frame.arbitration_id
         self._seq = seq = self._seq + 1
         clock = self.clock
         now = clock.now_us if at < 0 else at
         # arbitration key: the ID, then request order (ties never happen in the protocol)
-        self._pending.append(((arb << 40) | seq, now, ctrl, msg, bits))
+        self._pending.append(((arb << 40) | seq, now, ctrl, frame, bits))
         ctrl._n_pending += 1
         if not self._busy:
             # _kick, inlined (one call less per frame): arbitrate at the next SOF
@@ -456,7 +462,7 @@ class CanNetwork(ForeignPath):
         return True
 
     @staticmethod
-    def _checked_bits(ctrl: CanController, msg: can.Message) -> int:
+    def _checked_bits(ctrl: CanController, msg: Frame | can.Message) -> int:
         """The frame's bit length, after checking it is one the robot's PIC can send."""
         arb = msg.arbitration_id
         if msg.is_extended_id or msg.is_remote_frame or msg.is_error_frame or msg.is_fd:
@@ -491,7 +497,7 @@ class CanNetwork(ForeignPath):
         self._start = start
         self.clock.schedule(start + 1, self._decide_cb)
 
-    def _pick(self, start: int) -> tuple[int, int, CanController, can.Message, int] | None:
+    def _pick(self, start: int) -> tuple[int, int, CanController, Frame, int] | None:
         """The arbitration winner among the frames requested up to ``start`` (lowest ID)."""
         best = None
         best_key = 0
@@ -530,7 +536,7 @@ class CanNetwork(ForeignPath):
             return
         self._begin(best, start)
 
-    def _begin(self, best: tuple[int, int, CanController, can.Message, int], start: int) -> None:
+    def _begin(self, best: tuple[int, int, CanController, Frame, int], start: int) -> None:
         """``best`` won the arbitration at ``start``: it is on the wire until its end (or its
         error frame)."""
         if self._recovering:
@@ -577,12 +583,12 @@ class CanNetwork(ForeignPath):
 
     def _complete(self) -> None:
         """End of EOF: the frame is valid; deliver it to the receivers and listeners."""
-        _key, _req, ctrl, msg, bits = self._current  # type: ignore[misc]
+        _key, _req, ctrl, frame, bits = self._current  # type: ignore[misc]
         self._current = None
         t = self.clock.now_us
-        msg.timestamp = t / US_PER_S
-        msg.channel = self.channel
-        msg.is_rx = True
+        frame.timestamp = t / US_PER_S
+        frame.channel = self.channel
+        frame.is_rx = True
         if ctrl._n_pending:
             ctrl._n_pending -= 1
         ctrl.frames_sent += 1
@@ -596,13 +602,11 @@ class CanNetwork(ForeignPath):
         if self._outcome == _DROP:
             self.frames_dropped += 1
         elif self._twin:
-            ctrl._port.deliver(msg)  # type: ignore[union-attr]  # TwinBus.deliver, compiled
+            ctrl._port.deliver(frame)  # type: ignore[union-attr]  # TwinBus.deliver, compiled
         else:
-            self._send_and_drain(ctrl, msg, t)
+            self._send_and_drain(ctrl, frame, t)
         if self._listeners:
-            copy = can.Message(timestamp=msg.timestamp, arbitration_id=msg.arbitration_id,
-                               is_extended_id=False,
-                               channel=self.channel, dlc=msg.dlc, data=bytes(msg.data), is_rx=True)
+            copy = frame.to_message()        # python-can's loggers get a can.Message of their own
             for lst in self._listeners:
                 lst.on_message_received(copy)
         pending = self._pending

@@ -22,7 +22,6 @@ cdef class SerialLink:
     cdef public _Direction _to_dev
     cdef public _Direction _to_host
     cdef public object _device_rx
-    cdef public list _host_wakeups
     cdef public list _taps
     cdef public double _noise_prob
     cdef public object _rng
@@ -34,14 +33,11 @@ cdef class SerialLink:
     @cython.locals(now=cython.longlong, times=list, noisy=bint, t=cython.longlong)
     cpdef list _push(self, _Direction d, bytes data)
     cpdef device_write(self, object data)
-    cpdef _wake_host(self)
     cpdef host_write(self, object data)
     @cython.locals(q=object, cb=object)
     cpdef _deliver_to_device(self)
     @cython.locals(q=object, now=cython.longlong, out=bytearray)
     cpdef bytes host_read_available(self)
-    @cython.locals(now=cython.longlong, n=cython.longlong)
-    cpdef long long host_in_waiting(self) except -1
     cpdef object next_host_byte_us(self)
     cpdef long long host_out_waiting(self) except -1
     cpdef bint host_pending(self) except -1

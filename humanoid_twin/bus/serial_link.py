@@ -8,7 +8,7 @@ previous ones; a byte written when the line is idle starts a new burst at ``cloc
 
 Device (Master) side: ``set_device_rx(cb)`` gets each byte at its stop bit (one clock event per
 byte), ``device_write(data)``. Host side: ``host_write(data)``, ``host_read_available()`` (the
-bytes whose stop bit is <= now), ``next_host_byte_us()`` and optional wakeup hooks for bridges.
+bytes whose stop bit is <= now), ``next_host_byte_us()`` (a reader's next instant).
 Observers: ``add_tap(cb)`` sees every write in either direction and every drop of bytes on their
 way (``bus/serial_log.py`` writes them to a file).
 """
@@ -78,7 +78,6 @@ class SerialLink:
         self._to_dev = _Direction()
         self._to_host = _Direction()
         self._device_rx: Callable[[int], None] | None = None
-        self._host_wakeups: list[Callable[[], None]] = []
         self._taps: list[Callable[[str, int, bytes, int], None]] = []
         self._noise_prob = 0.0
         self._rng = random.Random(0)
@@ -150,13 +149,6 @@ class SerialLink:
         self.bytes_to_host += len(data)
         if self._taps and times:
             self._tap(TAP_TO_HOST, self._to_host, times)
-        if self._host_wakeups:
-            for t in times:
-                self.clock.schedule(t, self._wake_host)
-
-    def _wake_host(self) -> None:
-        for cb in self._host_wakeups:
-            cb()
 
     # -- host (PC) side ------------------------------------------------------------------------
     def host_write(self, data: bytes) -> None:
@@ -192,16 +184,6 @@ class SerialLink:
         while q and q[0][0] <= now:
             out.append(q.popleft()[1])
         return bytes(out)
-
-    def host_in_waiting(self) -> int:
-        """How many bytes ``host_read_available()`` would return now."""
-        now = self.clock.now_us
-        n = 0
-        for t, _ in self._to_host.queue:
-            if t > now:
-                break
-            n += 1
-        return n
 
     def next_host_byte_us(self) -> int | None:
         """Stop-bit time of the next byte on its way to the host, or None."""
@@ -258,16 +240,6 @@ class SerialLink:
     def host_reset_input(self) -> int:
         """Discard the bytes already arrived at the host side; returns how many."""
         return len(self.host_read_available())
-
-    def add_host_rx_wakeup(self, cb: Callable[[], None]) -> None:
-        """Call ``cb()`` at the stop bit of every byte sent to the host (for bridges)."""
-        if not callable(cb):
-            raise TypeError(f"wakeup must be callable, got {cb!r}")
-        self._host_wakeups.append(cb)
-
-    def remove_host_rx_wakeup(self, cb: Callable[[], None]) -> None:
-        """Undo :meth:`add_host_rx_wakeup`."""
-        self._host_wakeups.remove(cb)
 
     # -- observers ---------------------------------------------------------------------------
     def add_tap(self, cb: Callable[[str, int, bytes, int], None]) -> None:

@@ -2,11 +2,12 @@
 # Python class): it stays a Python class; its RxPort, the per-frame path, is an extension type
 # the wire (network.pxd) calls directly.
 cimport cython
+from humanoid_twin.bus.frames cimport Frame
 
 cdef class RxPort:
     cdef public object bus
     cdef public dict routes
     cdef public long long rx_skipped
 
-    @cython.locals(route=object, cbs=tuple, skips=tuple, p=RxPort)
+    @cython.locals(route=object, cbs=tuple, skips=tuple, p=RxPort, frame=Frame)
     cpdef deliver(self, object msg)

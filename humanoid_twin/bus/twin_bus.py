@@ -19,8 +19,11 @@ compiled core makes it an extension type the wire calls directly): the routes of
 bus sends and the count of frames it only counts. ``TwinBus.deliver`` is that port's
 ``deliver``.
 
-The delivery is zero-copy: every receiver gets the same :class:`can.Message` object. Treat a
-received message as read-only.
+The delivery is zero-copy: every receiver gets the same object. Treat a received message as
+read-only. The frames the network's nodes send are the wire's own record
+(:class:`~humanoid_twin.bus.frames.Frame`, python-can's attribute names): the nodes' receive
+interrupts get it as it is, every other member (a tool's ``rx_callback`` or ``recv()``) a
+:class:`can.Message`.
 """
 
 from __future__ import annotations
@@ -34,7 +37,7 @@ from typing import Any, Protocol
 import can
 from can.bus import BusABC
 
-from humanoid_twin.bus.frames import Filters, filters_accept, parse_filters
+from humanoid_twin.bus.frames import Filters, Frame, as_message, filters_accept, parse_filters
 
 DEFAULT_CHANNEL = "humanoid_twin"
 
@@ -115,7 +118,9 @@ def release_medium(medium: _Medium) -> None:
             del _MEDIA[medium.channel]
 
 
-def _copy(msg: can.Message) -> can.Message:
+def _copy(msg: Frame | can.Message) -> can.Message:
+    if type(msg) is Frame:
+        return msg.to_message()
     return can.Message(timestamp=msg.timestamp, arbitration_id=msg.arbitration_id,
                        is_extended_id=msg.is_extended_id, is_remote_frame=msg.is_remote_frame,
                        is_error_frame=msg.is_error_frame, channel=msg.channel, dlc=msg.dlc,
@@ -141,9 +146,13 @@ class RxPort:
         self.routes: dict[int, tuple[tuple[RxCallback, ...], tuple[RxPort, ...]]] = {}
         self.rx_skipped = 0
 
-    def deliver(self, msg: can.Message) -> None:
+    def deliver(self, msg: Frame | can.Message) -> None:
         """:meth:`TwinBus.deliver`: hand ``msg`` (already on the wire) to every accepting member."""
-        route = None if msg.is_extended_id else self.routes.get(msg.arbitration_id)
+        if type(msg) is Frame:
+            frame = msg
+            route = self.routes.get(frame.arbitration_id)
+        else:
+            route = None if msg.is_extended_id else self.routes.get(msg.arbitration_id)
         if route is None:
             self.bus._deliver_slow(msg)
             return
@@ -221,6 +230,19 @@ class TwinBus(BusABC):
         if medium is not None:
             medium.invalidate()
 
+    def _frame_callback(self) -> RxCallback:
+        """What a route calls for this member: a network node's receive interrupt takes the
+        wire's :class:`~humanoid_twin.bus.frames.Frame` as it is; any other ``rx_callback`` (a
+        tool's) gets a :class:`can.Message`."""
+        cb = self._rx_callback
+        assert cb is not None
+        if self._network_node:
+            return cb
+
+        def as_python_can(msg: Frame | can.Message) -> None:
+            cb(as_message(msg))
+        return as_python_can
+
     def forget_routes(self) -> None:
         """Drop the cached delivery routes (the medium's members, filters or mutes changed)."""
         self.port.routes.clear()
@@ -286,14 +308,14 @@ class TwinBus(BusABC):
             msg.timestamp = time.time()
         self.deliver(msg)
 
-    def deliver(self, msg: can.Message) -> None:
+    def deliver(self, msg: Frame | can.Message) -> None:
         """Hand ``msg`` (already on the wire) to every accepting member of the channel.
 
         (The class's form, for the docs: each instance's ``deliver`` is its :attr:`port`'s,
         which takes a route kept from an earlier frame, else this bus's ``_deliver_slow``.)"""
         self.port.deliver(msg)
 
-    def _deliver_slow(self, msg: can.Message) -> None:
+    def _deliver_slow(self, msg: Frame | can.Message) -> None:
         """:meth:`deliver` of a frame with no kept route: the medium's route, kept for the next
         frame with this ID when every target has an interrupt, else each target served in turn."""
         extended = msg.is_extended_id
@@ -303,7 +325,7 @@ class TwinBus(BusABC):
         if not extended and all(b.rx_callback is not None for b in targets):
             skips = tuple(b.port for b in targets if b.skips(arb))
             self.port.routes[arb] = (
-                tuple(b.rx_callback for b in targets if b.port not in skips), skips)
+                tuple(b._frame_callback() for b in targets if b.port not in skips), skips)
             self.port.deliver(msg)
             return
         for bus in targets:
@@ -311,7 +333,7 @@ class TwinBus(BusABC):
             if bus.skips(arb, extended):
                 bus.port.rx_skipped += 1
             elif cb is not None:
-                cb(msg)
+                cb(msg if bus._network_node else as_message(msg))
             else:
                 # a queueing reader (a tool) reads later: give it its own copy, the sender may
                 # reuse its message object once the frame is done (the twin's boards do)

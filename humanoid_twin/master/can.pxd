@@ -1,6 +1,7 @@
 # C declarations for can.py (the compiled core, docs/architecture.md): the same source, compiled.
 cimport cython
 
+from humanoid_twin.bus.frames cimport Frame
 from humanoid_twin.bus.network cimport CanController
 from humanoid_twin.clock cimport Clock
 from humanoid_twin.master.candrivers cimport CanDrivers
@@ -30,7 +31,7 @@ cdef class MasterCan:
     @cython.locals(ctl=CanController, key=cython.longlong)
     cpdef object _message(self, long long scu, long long index, object payload)
     cpdef canAbort(self)
-    @cython.locals(db=Database, c=MasterCounters, s=ScuSensors, ident=cython.longlong,
+    @cython.locals(msg=Frame, data=bytes, db=Database, c=MasterCounters, s=ScuSensors, ident=cython.longlong,
                    src=cython.longlong, dst=cython.longlong, index=cython.longlong,
                    op=cython.longlong, sf_src=cython.longlong)
     cpdef bint canReceiveMsg(self)

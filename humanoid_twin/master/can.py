@@ -10,8 +10,6 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-import can
-
 from humanoid_twin.master.candrivers import CanDrivers
 from humanoid_twin.master.database import Database
 from humanoid_twin.protocol.canframes import (
@@ -34,6 +32,7 @@ from humanoid_twin.protocol.wire import N_SCU, node_name
 if TYPE_CHECKING:
     from collections.abc import Callable
 
+    from humanoid_twin.bus.frames import Frame
     from humanoid_twin.bus.network import CanNetwork
     from humanoid_twin.clock import Clock
 
@@ -47,9 +46,9 @@ class MasterCan:
         self.drivers = CanDrivers(network, name)
         self.rejected: list[tuple[int, int, str]] = []  # (t_us, id, reason), the last few rejected frames
         # scu * 2 + index -> its last actuation message (None: not requested yet)
-        self._tx_msgs: list[can.Message | None] = [None] * ((N_SCU + 1) * 2)
+        self._tx_msgs: list[Frame | None] = [None] * ((N_SCU + 1) * 2)
 
-    def canInit(self, on_rx: Callable[[can.Message], None]) -> None:
+    def canInit(self, on_rx: Callable[[Frame], None]) -> None:
         """``canInit`` (table 4): CAN peripheral with the Master's acceptance filters (slide 23:
         RXB0 = frames to the Master with index 0, RXB1 = index 1) and its RX interrupt ``on_rx``."""
         self.drivers.myCANInitialize(master_filters(), on_rx)
@@ -81,7 +80,7 @@ class MasterCan:
             c.can_tx_refused += 1
         return ok
 
-    def _message(self, scu: int, index: int, payload: bytes) -> can.Message:
+    def _message(self, scu: int, index: int, payload: bytes) -> Frame:
         """The actuation packet ``index`` of ``scu`` as a message, reused from its last request
         when the controller holds none of the Master's frames any more (``load_tx``)."""
         ctl = self.drivers.controller

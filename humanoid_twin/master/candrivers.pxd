@@ -3,6 +3,7 @@
 # load_tx are C calls.
 cimport cython
 
+from humanoid_twin.bus.frames cimport Frame
 from humanoid_twin.bus.network cimport CanController
 from humanoid_twin.protocol.canframes cimport packet_index
 
@@ -24,6 +25,6 @@ cdef class CanDrivers:
     @cython.locals(ctl=CanController, txb=list)
     cpdef bint myCANAbort(self)
     @cython.locals(n=cython.longlong)
-    cpdef rx_interrupt(self, object msg)
+    cpdef rx_interrupt(self, Frame msg)
     @cython.locals(rxb=list)
     cpdef object myCANReceiveMessage(self)

@@ -11,17 +11,13 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from humanoid_twin.protocol.canframes import packet_index
+from humanoid_twin.protocol.canframes import PIC_RX_BUFFERS, PIC_TX_BUFFERS, packet_index
 
 if TYPE_CHECKING:
     from collections.abc import Callable
 
-    import can
-
+    from humanoid_twin.bus.frames import Frame
     from humanoid_twin.bus.network import CanController, CanNetwork
-
-N_TX_BUFFERS = 3
-N_RX_BUFFERS = 2
 
 
 class CanDriverError(RuntimeError):
@@ -35,11 +31,11 @@ class CanDrivers:
         self.network = network
         self.name = name
         self.controller: CanController | None = None
-        self.rxb: list[can.Message | None] = [None] * N_RX_BUFFERS    # RXB0, RXB1 (full = not None)
-        self.txb: list[can.Message | None] = [None] * N_TX_BUFFERS    # last message requested per TXBn
+        self.rxb: list[Frame | None] = [None] * PIC_RX_BUFFERS  # RXB0, RXB1 (full = not None)
+        self.txb: list[Frame | None] = [None] * PIC_TX_BUFFERS  # last message requested per TXBn
         self.rx_overflows = 0
 
-    def myCANInitialize(self, can_filters: list[dict], on_rx: Callable[[can.Message], None]) -> CanController:
+    def myCANInitialize(self, can_filters: list[dict], on_rx: Callable[[Frame], None]) -> CanController:
         """``myCANInitialize`` (table 5): configuration mode, bit timing, masks/filters, normal mode.
 
         In the twin: attach the node to the network with ``can_filters`` (slide 23) and ``on_rx``
@@ -56,7 +52,7 @@ class CanDrivers:
             raise CanDriverError(f"CAN node {self.name!r}: myCANInitialize was not called")
         return ctl
 
-    def myCANSendMessage0(self, msg: can.Message) -> bool:
+    def myCANSendMessage0(self, msg: Frame) -> bool:
         """``myCANSendMessage0`` (table 5): send through TX buffer 0 (packet index 0)."""
         # _send(0, msg), inlined: the Master's schedule calls this 2000 times a second
         self.txb[0] = msg
@@ -65,7 +61,7 @@ class CanDrivers:
             ctl = self._ctl()
         return ctl.send(msg) is not False
 
-    def myCANSendMessage1(self, msg: can.Message) -> bool:
+    def myCANSendMessage1(self, msg: Frame) -> bool:
         """``myCANSendMessage1`` (table 5): send through TX buffer 1 (packet index 1)."""
         self.txb[1] = msg
         ctl = self.controller
@@ -86,7 +82,7 @@ class CanDrivers:
         txb[0] = txb[1] = txb[2] = None
         return bool(dropped)
 
-    def rx_interrupt(self, msg: can.Message) -> None:
+    def rx_interrupt(self, msg: Frame) -> None:
         """The receive path of the controller: the frame lands in RXB0 or RXB1 by its index bit
         (filters of slide 23). A buffer still full is overwritten and counted (RXBnOVFL)."""
         n = packet_index(msg.arbitration_id)
@@ -94,7 +90,7 @@ class CanDrivers:
             self.rx_overflows += 1
         self.rxb[n] = msg
 
-    def myCANReceiveMessage(self) -> can.Message | None:
+    def myCANReceiveMessage(self) -> Frame | None:
         """``myCANReceiveMessage`` (table 5): read (and free) the first full RX buffer, or None."""
         rxb = self.rxb
         msg = rxb[0]

@@ -9,6 +9,12 @@
 # are the source's. Identifiers and bytes that are checked by C comparisons are C longs.
 cimport cython
 
+# C constants of the unpack functions (private aliases; canframes.py)
+cdef long _CAN_STATE, _CAN_STATE_MAX, _SUPERVISOR, _LAW, _CURRENT_MAX
+cdef tuple _INT8
+
+cpdef bytes _payload(object data, str packet)
+
 cpdef long can_id(object src, object dst, object index, object op) except? -1
 cpdef tuple split_id(object arbitration_id)
 cpdef long packet_index(long arbitration_id) except? -1
@@ -20,13 +26,15 @@ cpdef object parse_status_byte(object b)
 cpdef long sflags(object src, object index) except? -1
 cpdef long _split_sflags(long sf, long index, str packet) except? -1
 cpdef bytes pack_actuation1(object refs, object speeds, object control, object kd3)
+@cython.locals(b=bytes, i8=tuple)
 cpdef tuple unpack_actuation1(object data)
 cpdef bytes pack_actuation2(object ki, object kp, object kd1, object kd2)
+@cython.locals(b=bytes)
 cpdef tuple unpack_actuation2(object data)
 cpdef bytes pack_sensors1(object src, object pos, object speed, object status, object flags=*)
-@cython.locals(sf=cython.long)
+@cython.locals(b=bytes, sf=cython.long, i8=tuple)
 cpdef tuple unpack_sensors1(object data)
 cpdef tuple supervisor_flags(object data)
 cpdef bytes pack_sensors2(object src, object curr, object data4, object law_stopped=*)
-@cython.locals(sf=cython.long, c1=cython.long, c2=cython.long, c3=cython.long)
+@cython.locals(b=bytes, c1=cython.long, c2=cython.long, c3=cython.long)
 cpdef tuple unpack_sensors2(object data)

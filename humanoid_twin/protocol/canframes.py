@@ -8,8 +8,10 @@ Identifier (11 bits): bits 10-7 source address, 6-3 destination, 2 packet index,
 (:data:`OP_ACTUATION` Master -> Slave, :data:`OP_SENSORS` Slave -> Master).
 
 Pure codecs, no I/O, no time, built for the hot path (thousands of payloads per simulated second):
-the pack/unpack functions take and return plain ints/tuples/bytes over precompiled
-``struct.Struct`` objects, the byte parsers are 256-entry look-up tables.
+the pack functions take plain ints/tuples and return bytes over precompiled ``struct.Struct``
+objects; the unpack functions read the payload's bytes one by one (an int8 field through a
+256-entry table; C byte reads in the compiled core, canframes.pxd) and return plain ints/tuples;
+the byte parsers are 256-entry look-up tables.
 """
 
 from __future__ import annotations
@@ -50,6 +52,9 @@ __all__ = [
     "PayloadError",
     "SlaveStatus",
     "STD_ID_MAX",
+    "CAN_BITRATE",
+    "PIC_TX_BUFFERS",
+    "PIC_RX_BUFFERS",
     "can_id",
     "split_id",
     "packet_index",
@@ -87,6 +92,12 @@ CURRENT_MAX = 100       # Curr1..3 are 0..100 (seed 000 finalizeServoMeasures, d
 
 # Identifier layout (slide 18): bits 10-7 source, 6-3 destination, 2 packet index, 1-0 operation.
 STD_ID_MAX = 0x7FF      # an 11-bit standard identifier
+
+# The PIC18F258's CAN module (seed 002 slide 21): bit rates up to 1 Mbit/s, the robot's bus rate
+# (docs/buses.md); 3 prioritized TX buffers and 2 RX buffers (their use: slide 24).
+CAN_BITRATE = 1_000_000
+PIC_TX_BUFFERS = 3
+PIC_RX_BUFFERS = 2
 _SRC_SHIFT = 7
 _DST_SHIFT = 3
 _INDEX_SHIFT = 2
@@ -301,6 +312,18 @@ def _length_error(packet: str, data: bytes | bytearray | memoryview) -> PayloadE
     )
 
 
+# an int8 field (Ref, Pos, Speed of slide 20: two's complement) by its byte's value
+_INT8: tuple[int, ...] = tuple(b - 256 if b > 127 else b for b in range(256))
+
+
+def _payload(data: bytes | bytearray | memoryview, packet: str) -> bytes:
+    """A received payload as ``bytes`` of :data:`PAYLOAD_LEN` (``PayloadError`` otherwise)."""
+    b = data if type(data) is bytes else bytes(memoryview(data))
+    if len(b) != PAYLOAD_LEN:
+        raise _length_error(packet, data)
+    return b
+
+
 def pack_actuation1(refs: Sequence[int], speeds: Sequence[int], control: int, kd3: int) -> bytes:
     """Actuation 1 ``Ref1 Ref2 Ref3 Speed1 Speed2 Speed3 Control KD3`` (slide 20; ``canSendMsg``).
 
@@ -318,11 +341,9 @@ def pack_actuation1(refs: Sequence[int], speeds: Sequence[int], control: int, kd
 def unpack_actuation1(data: bytes) -> tuple[tuple[int, int, int], tuple[int, int, int], int, int]:
     """Actuation 1 payload -> ``((ref1, ref2, ref3), (speed1, speed2, speed3), control, kd3)``
     (``receiveCanMessage`` on the Slave)."""
-    try:
-        r1, r2, r3, s1, s2, s3, c, k = _ACT1.unpack(data)
-    except struct.error:
-        raise _length_error("Actuation1", data) from None
-    return (r1, r2, r3), (s1, s2, s3), c, k
+    b = _payload(data, "Actuation1")
+    i8 = _INT8
+    return (i8[b[0]], i8[b[1]], i8[b[2]]), (b[3], b[4], b[5]), b[6], b[7]
 
 
 def pack_actuation2(ki: Sequence[int], kp: Sequence[int], kd1: int, kd2: int) -> bytes:
@@ -337,11 +358,8 @@ def pack_actuation2(ki: Sequence[int], kp: Sequence[int], kd1: int, kd2: int) ->
 
 def unpack_actuation2(data: bytes) -> tuple[tuple[int, int, int], tuple[int, int, int], int, int]:
     """Actuation 2 payload -> ``((ki1, ki2, ki3), (kp1, kp2, kp3), kd1, kd2)``."""
-    try:
-        i1, i2, i3, p1, p2, p3, d1, d2 = _ACT2.unpack(data)
-    except struct.error:
-        raise _length_error("Actuation2", data) from None
-    return (i1, i2, i3), (p1, p2, p3), d1, d2
+    b = _payload(data, "Actuation2")
+    return (b[0], b[1], b[2]), (b[3], b[4], b[5]), b[6], b[7]
 
 
 def pack_sensors1(src: int, pos: Sequence[int], speed: Sequence[int], status: int, flags: int = 0) -> bytes:
@@ -367,13 +385,13 @@ def unpack_sensors1(data: bytes) -> tuple[int, int, tuple[int, int, int], tuple[
     """Sensors 1 payload -> ``(src, index, (pos1, pos2, pos3), (speed1, speed2, speed3), status)``
     (``canReceiveMsg`` on the Master). ``PayloadError`` if its index is not 0 or SFlags bits 1-0
     are 3. Bits 2-0 are the supervisor flags (:func:`supervisor_flags`)."""
-    try:
-        sf, p1, p2, p3, v1, v2, v3, st = _SEN1.unpack(data)
-    except struct.error:
-        raise _length_error("Sensors1", data) from None
-    if sf & SFLAGS_CAN_STATE > ErrorState.BUS_OFF:
+    b = _payload(data, "Sensors1")
+    sf = b[0]
+    if sf & _CAN_STATE > _CAN_STATE_MAX:
         raise PayloadError(f"Sensors1: SFlags 0x{sf:02X} carries CAN state 3 (0..2 only)")
-    return _split_sflags(sf & ~SFLAGS_SUPERVISOR, 0, "Sensors1"), 0, (p1, p2, p3), (v1, v2, v3), st
+    i8 = _INT8
+    return (_split_sflags(sf & ~_SUPERVISOR, 0, "Sensors1"), 0, (i8[b[1]], i8[b[2]], i8[b[3]]),
+            (i8[b[4]], i8[b[5]], i8[b[6]]), b[7])
 
 
 # Sensors 1 SFlags bits 2-0 (zero in seed 002 slide 20): the supervisor flags of the Slave
@@ -385,6 +403,14 @@ SFLAGS_SUPERVISOR = SFLAGS_WATCHDOG | SFLAGS_CAN_STATE   # bits 2-0 (Sensors 2: 
 # Sensors 2 SFlags bit 2 (zero in slide 20): a control law of the Slave was stopped (it raised or
 # returned bad values; the board holds those servos; docs/controllers.md, docs/supervisor.md).
 SFLAGS2_LAW = 0x04
+
+# the same facts under private names, C constants of the compiled codecs (canframes.pxd; the
+# public names stay Python objects for the modules that import them)
+_CAN_STATE = SFLAGS_CAN_STATE
+_CAN_STATE_MAX = int(ErrorState.BUS_OFF)
+_SUPERVISOR = SFLAGS_SUPERVISOR
+_LAW = SFLAGS2_LAW
+_CURRENT_MAX = CURRENT_MAX
 
 
 def supervisor_flags(data: bytes | bytearray) -> tuple[bool, int]:
@@ -416,13 +442,13 @@ def unpack_sensors2(data: bytes) -> tuple[int, int, tuple[int, int, int], tuple[
     """Sensors 2 payload -> ``(src, index, (curr1, curr2, curr3), (data1, data2, data3, data4))``.
     ``PayloadError`` if SFlags bits 1-0 are not zero, its index is not 1, or a current is over 100
     (bit 2, :data:`SFLAGS2_LAW`, is read with ``data[0] & SFLAGS2_LAW``)."""
-    try:
-        sf, c1, c2, c3, d1, d2, d3, d4 = _SEN2.unpack(data)
-    except struct.error:
-        raise _length_error("Sensors2", data) from None
-    if c1 > CURRENT_MAX or c2 > CURRENT_MAX or c3 > CURRENT_MAX:
+    b = _payload(data, "Sensors2")
+    c1 = b[1]
+    c2 = b[2]
+    c3 = b[3]
+    if c1 > _CURRENT_MAX or c2 > _CURRENT_MAX or c3 > _CURRENT_MAX:
         raise PayloadError(f"Sensors2: current must be 0..{CURRENT_MAX}, got {(c1, c2, c3)}")
-    return _split_sflags(sf & ~SFLAGS2_LAW, 1, "Sensors2"), 1, (c1, c2, c3), (d1, d2, d3, d4)
+    return _split_sflags(b[0] & ~_LAW, 1, "Sensors2"), 1, (c1, c2, c3), (b[4], b[5], b[6], b[7])
 
 
 # --- DBC -----------------------------------------------------------------------------------

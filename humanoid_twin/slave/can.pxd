@@ -5,6 +5,7 @@
 # supervisor tests and the fault tests read is public.
 cimport cython
 
+from humanoid_twin.bus.frames cimport Frame
 from humanoid_twin.bus.network cimport CanController
 from humanoid_twin.clock cimport Clock
 from humanoid_twin.protocol.canframes cimport (
@@ -64,7 +65,7 @@ cdef class SlaveCan:
     cdef public long long _skipped_seen
 
     @cython.locals(now=cython.longlong, due=cython.longlong)
-    cpdef lowISR(self, object msg)
+    cpdef lowISR(self, Frame msg)
     @cython.locals(c=CanController, skipped=cython.longlong, cycles=cython.longlong)
     cpdef long long take_isr_cycles(self) except? -1
     cpdef _isr_send(self)

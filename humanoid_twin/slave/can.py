@@ -24,8 +24,6 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING, Any
 
-import can
-
 from humanoid_twin.cycles import SLAVE
 from humanoid_twin.hardware import PWM_BUSY_US, PWM_PERIOD_US
 from humanoid_twin.protocol.canframes import (
@@ -45,6 +43,7 @@ from humanoid_twin.protocol.wire import ErrorState, node_name
 from humanoid_twin.slave.database import Global
 
 if TYPE_CHECKING:
+    from humanoid_twin.bus.frames import Frame
     from humanoid_twin.clock import Clock
 
 __all__ = ["ISR_LATENCY_US", "SlaveCan"]
@@ -102,7 +101,7 @@ class SlaveCan:
         # and operation check of lowISR in one dict lookup
         self._rx_index = {ACTUATION_IDS[address][i]: i for i in (0, 1)}
         # the sensor packets' messages (TXB0/TXB1), built once and reloaded for each answer
-        self._tx_msgs: list[can.Message | None] = [None, None]
+        self._tx_msgs: list[Frame | None] = [None, None]
         self._isr_send_cb = self._isr_send
         self.payload: list[bytes] = [bytes(8), bytes(8)]   # Sensors 1 / Sensors 2, ready to send
         self.calib_request = False       # Calib bit 0 -> 1 seen (handled by the main loop)
@@ -143,7 +142,7 @@ class SlaveCan:
         return self._rx_ignored + (c.rx_skipped if c is not None else 0)
 
     # -- interrupt ------------------------------------------------------------------------------
-    def lowISR(self, msg: can.Message) -> None:
+    def lowISR(self, msg: Frame) -> None:
         """``lowISR`` (table 17, fig. 9, slide 29): the CAN receive interrupt (RXBnIF)."""
         index = self._rx_index.get(msg.arbitration_id)
         if index is None:                          # not for this board, or not an actuation
