@@ -105,7 +105,7 @@ def _add_can_options(p: argparse.ArgumentParser) -> None:
 
 def build_parser() -> argparse.ArgumentParser:
     """The CLI's argument parser (exposed for the docs and the tests)."""
-    from humanoid_twin.faults import add_fault_options
+    from humanoid_twin.cli.fault_options import add_fault_options
     from humanoid_twin.scenarios import CONTROL_CHOICES, DEFAULT_MOTION_DEG, DEFAULT_T_S, SCENARIOS
 
     raw = argparse.RawDescriptionHelpFormatter
@@ -432,7 +432,7 @@ def cmd_run(args: argparse.Namespace) -> int:
 def _run(args: argparse.Namespace, controllers: dict, outputs: _Outputs, out_tmp: Path | None,
          can_tmp: Path | None) -> int:
     from humanoid_twin import signals
-    from humanoid_twin.faults import supervisor_config
+    from humanoid_twin.cli.fault_options import supervisor_config
     from humanoid_twin.recording.readback import RrdReadError
     from humanoid_twin.scenarios import RunOptions, ScenarioError, ScenarioInputError, run
 
@@ -557,7 +557,7 @@ def cmd_serve(args: argparse.Namespace) -> int:
 
     signal.signal(signal.SIGTERM, _stop)
     signal.signal(signal.SIGINT, _stop)
-    from humanoid_twin.faults import supervisor_config
+    from humanoid_twin.cli.fault_options import supervisor_config
 
     try:
         code = serve(tcp_port=args.tcp, host=args.host, seed=args.seed, tilt=args.tilt,
