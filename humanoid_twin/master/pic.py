@@ -48,7 +48,7 @@ class Pic:
     """The Master's PIC18F258: initialisation and interrupt service (table 1)."""
 
     def __init__(self, clock: Clock, usart: Usart, can: MasterCan, db: Database,
-                 supervisor: Supervisor | None = None) -> None:
+                 supervisor: Supervisor) -> None:
         self.clock = clock
         self.supervisor = supervisor
         self.usart = usart
@@ -87,8 +87,7 @@ class Pic:
             if self.slave == 1:
                 if self._round_open:
                     self.db.finish_round()
-                    if self.supervisor is not None:
-                        self.supervisor.on_round()
+                    self.supervisor.on_round()
                 self._round_open = True
             self.can.canSendMsg(self.slave, 0)
             self.slot = 1
