@@ -64,6 +64,8 @@ CONTROLLERS = '''
 import sys
 import time
 
+pytestmark = pytest.mark.slow       # subprocess-heavy: skipped by `pytest -m "not slow"` (README)
+
 def exits(ctx):
     sys.exit(0)
 

@@ -233,6 +233,7 @@ def _cli(*args: str, cwd) -> subprocess.CompletedProcess:
                           capture_output=True, text=True, timeout=120)
 
 
+@pytest.mark.slow
 def test_cli_exit_codes_and_summary(tmp_path) -> None:
     out = tmp_path / "x.rrd"
     bad = _cli("run", "stand", "--fault", "silent:9", "--out", str(out), cwd=tmp_path)

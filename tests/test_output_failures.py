@@ -107,6 +107,8 @@ import sys
 from humanoid_twin import signals
 from humanoid_twin.twin import Twin
 from humanoid_twin.recording import Recorder
+
+pytestmark = pytest.mark.slow       # subprocess-heavy: skipped by `pytest -m "not slow"` (README)
 signals.install()
 try:
     with Twin(seed=0) as twin:
