@@ -459,11 +459,9 @@ def run(opts: RunOptions, on_progress: Callable[[float, float | None], None] | N
         host_calls = None
         try:
             try:
-                if host_error is not None:
-                    pass
-                elif not spec.moves:
+                if host_error is None and not spec.moves:
                     hold(H, the_plan)
-                elif duration > twin.now_s:
+                elif host_error is None and duration > twin.now_s:
                     exe_traj(H, the_plan.t, the_plan.pos_apply, 0.0, k=the_plan.k)
             except drivers.CommError as exc:
                 # with the supervisor stopped, or faults injected, a failed request is part of what
