@@ -23,6 +23,8 @@ from humanoid_twin.cli import main as cli
 from humanoid_twin.recording import Recorder, read_rrd_rows, verify_rrd
 from humanoid_twin.twin import Twin
 
+pytestmark = pytest.mark.slow       # subprocess-heavy: skipped by `pytest -m "not slow"` (README)
+
 CLI = [sys.executable, "-m", "humanoid_twin.cli.main"]
 
 
@@ -107,8 +109,6 @@ import sys
 from humanoid_twin import signals
 from humanoid_twin.twin import Twin
 from humanoid_twin.recording import Recorder
-
-pytestmark = pytest.mark.slow       # subprocess-heavy: skipped by `pytest -m "not slow"` (README)
 signals.install()
 try:
     with Twin(seed=0) as twin:
