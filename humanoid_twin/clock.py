@@ -127,11 +127,13 @@ class Clock:
 
 
 class RealTimePacer:
-    """Keeps virtual time in step with the wall clock (the ``serve`` mode).
+    """Keeps virtual time in step with the wall clock (``serve``, ``run --viewer``): the one
+    real-time pacer.
 
     ``pace()`` advances the clock to the virtual instant that corresponds to the elapsed wall
     time since ``start()``, at most ``max_step_us`` at a time, and returns how far behind real
-    time the twin is (seconds, 0 when on time).
+    time the twin is (seconds, 0 when on time); ``wait()``, for code that runs inside a clock
+    event, sleeps until wall time has caught up with the clock instead.
     """
 
     def __init__(self, clock: Clock, speed: float = 1.0) -> None:
@@ -157,3 +159,12 @@ class RealTimePacer:
         if target > now:
             (advance_to or self.clock.run_until)(min(target, now + max_step_us))
         return max(0.0, (target - self.clock.now_us) / US_PER_S)
+
+    def wait(self) -> float:
+        """Sleep until wall time catches up with the clock's now (for a caller inside a clock event,
+        the live viewer: the twin runs faster than real time); return how long it slept (s)."""
+        ahead = (self.clock.now_us - self._virt0) / (self.speed * US_PER_S) - (time.monotonic() - self._wall0)
+        if ahead > 0:
+            time.sleep(ahead)
+            return ahead
+        return 0.0

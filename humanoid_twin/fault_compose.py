@@ -20,6 +20,9 @@ kind                   in effect while several are active
 ``push``               the forces add up
 =====================  ==========================================================================
 
+How a kind combines is its :class:`~humanoid_twin.faults.FaultKind`'s (``combine``, ``targeted``,
+``lasts_us``, in ``faults.KINDS``); the table says what the built-in kinds do.
+
 A combination the CAN wire cannot carry, a drop and a corruption whose probabilities add up to
 more than 1 at some instant (a frame is lost *or* destroyed, never both), is refused before the
 run (:func:`check_composition`: :class:`~humanoid_twin.faults.FaultSpecError`, exit 2 from the
@@ -32,9 +35,16 @@ import math
 from collections.abc import Iterable, Sequence
 from typing import Any
 
+from humanoid_twin.clock import US_PER_S
+
 __all__ = ["combine_probability", "active_at", "check_composition", "effective", "target_of"]
 
-_PROBABILITY_KINDS = ("can-drop", "can-corrupt", "serial-noise")
+
+
+def _kind(name: str) -> Any:
+    from humanoid_twin.faults import KINDS  # the registry (faults.py imports this module)
+
+    return KINDS[name]
 
 
 def combine_probability(ps: Sequence[float]) -> float:
@@ -50,16 +60,15 @@ def combine_probability(ps: Sequence[float]) -> float:
 def target_of(spec: Any) -> Any:
     """What a fault acts on, among faults of its kind: the node, the SCU, (SCU, servo), or None
     (the whole wire, the serial link, every sensor, the trunk)."""
-    if spec.kind in ("silent", "bus-off", "deadline", "force-stuck", "servo-stuck"):
-        return spec.arg
-    return None
+    return spec.arg if _kind(spec.kind).targeted else None
 
 
 def _end_s(spec: Any) -> float:
     if spec.t1_s is not None:
         return spec.t1_s
-    if spec.kind == "push":
-        return spec.t0_s + 0.1
+    lasts_us = _kind(spec.kind).lasts_us
+    if lasts_us is not None:
+        return spec.t0_s + lasts_us / US_PER_S
     return math.inf
 
 
@@ -71,14 +80,8 @@ def active_at(specs: Iterable[Any], t_s: float) -> list[Any]:
 def effective(kind: str, active: Iterable[Any], target: Any = None) -> Any:
     """What the twin gets for ``kind`` (on ``target``) while ``active`` are the active specs: a
     probability, the COUNTS, the total force, or whether the node / foot / servo is affected."""
-    mine = [s for s in active if s.kind == kind and target_of(s) == target]
-    if kind in _PROBABILITY_KINDS:
-        return combine_probability([s.arg for s in mine])
-    if kind == "force-noise":
-        return max((s.arg for s in mine), default=0)
-    if kind == "push":
-        return float(sum(s.arg for s in mine))
-    return bool(mine)
+    mine = [s.arg for s in active if s.kind == kind and target_of(s) == target]
+    return _kind(kind).combine(mine)
 
 
 def check_composition(specs: Sequence[Any]) -> None:

@@ -22,9 +22,11 @@ from humanoid_twin.clock import US_PER_S, Clock, RealTimePacer
 from humanoid_twin.cycles import DEFAULT_PIC_MHZ
 from humanoid_twin.hardware import PWM_PERIOD_US
 from humanoid_twin.master.master import Master
+from humanoid_twin.master.pic import TIMER_PERIOD_US
 from humanoid_twin.master.supervisor import SupervisorConfig
 from humanoid_twin.plant import Plant
 from humanoid_twin.protocol.wire import LINE_SETTINGS, N_SCU, SCUS
+from humanoid_twin.seeds import STREAM_PHASES, derive_seed
 from humanoid_twin.slave.slave import Slave
 
 _names = itertools.count()
@@ -113,8 +115,9 @@ class Twin:
 
 
 def _phases(seed: int) -> list[int]:
-    """Deterministic per-seed PWM phase of each Slave, in microseconds within one period."""
+    """Deterministic per-seed PWM phase of each Slave, in microseconds within one period, on the
+    Master's timer grid (250 us)."""
     import random
 
-    rng = random.Random(seed * 7919 + 17)
-    return [rng.randrange(0, PWM_PERIOD_US, 250) for _ in range(N_SCU)]
+    rng = random.Random(derive_seed(seed, STREAM_PHASES))
+    return [rng.randrange(0, PWM_PERIOD_US, TIMER_PERIOD_US) for _ in range(N_SCU)]

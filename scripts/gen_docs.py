@@ -6,6 +6,7 @@
 Each block sits between ``<!-- generated: NAME -->`` and ``<!-- end generated: NAME -->`` in a doc:
 
 - ``summary-keys`` in docs/scenarios.md: the run summary's keys (``summary.SUMMARY_KEYS``).
+- ``fault-kinds`` in docs/supervisor.md: the ``--fault`` kinds (``faults.KINDS``).
 
 docs/fault_matrix.md is the output of ``scripts/fault_matrix.py --seed 0 --out docs/fault_matrix.md``
 (48 runs; tests/test_docs.py checks its text and cells against the script, re-runs a sample of
@@ -29,8 +30,15 @@ def _summary_keys() -> str:
     return summary_keys_markdown()
 
 
+def _fault_kinds() -> str:
+    from humanoid_twin.faults import kinds_markdown
+
+    return kinds_markdown()
+
+
 BLOCKS: dict[str, tuple[Path, Callable[[], str]]] = {
     "summary-keys": (ROOT / "docs" / "scenarios.md", _summary_keys),
+    "fault-kinds": (ROOT / "docs" / "supervisor.md", _fault_kinds),
 }
 
 

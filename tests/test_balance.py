@@ -319,6 +319,7 @@ def test_slow_balance_velocities_accumulate_to_whole_degrees():
 LEVANTAR_MARGIN_MM = 10.0
 
 
+@pytest.mark.slow
 def test_levantar_perna_keeps_the_cop_margin_on_both_legs_for_seeds_0_to_9(tmp_path):
     from humanoid_twin.sweep import RunCli, grid, run_sweep
 

@@ -70,6 +70,7 @@ def test_bad_run_input_is_one_line_exit_2_and_the_old_file_survives(extra, messa
     assert sorted(p.name for p in tmp_path.iterdir()) == ["old.rrd"]     # no temporary file left
 
 
+@pytest.mark.slow
 def test_bad_serve_input_is_one_line_exit_2(tmp_path, busy_port):
     cases = [
         (["--tcp", "70000"], "0..65535"),
@@ -100,6 +101,7 @@ def test_a_successful_run_replaces_the_old_file(tmp_path):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["f.db", "old.rrd"]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("sig, code", [(signal.SIGTERM, 143), (signal.SIGINT, 130)],
                          ids=["SIGTERM", "SIGINT"])
 def test_signal_mid_run_closes_the_recording_and_the_can_log(sig, code, tmp_path):
@@ -124,6 +126,7 @@ def test_signal_mid_run_closes_the_recording_and_the_can_log(sig, code, tmp_path
     assert sorted(p.name for p in tmp_path.iterdir()) == ["s.asc", "s.rrd"]
 
 
+@pytest.mark.slow
 def test_disk_full_mid_run_is_one_line_and_the_old_file_survives(tmp_path):
     """A file-size limit stands for a full disk (no root needed): writes fail with EFBIG."""
     old = tmp_path / "old.rrd"

@@ -10,6 +10,8 @@ from pathlib import Path
 
 import pytest
 
+pytestmark = pytest.mark.slow       # subprocess-heavy: skipped by `pytest -m "not slow"` (README)
+
 CLI = [sys.executable, "-m", "humanoid_twin.cli.main"]
 
 LAWS = '''

@@ -111,6 +111,7 @@ def test_bad_law_options_are_usage_errors_before_anything_is_written(user_pkg, c
 REPO = Path(__file__).resolve().parents[1]
 
 
+@pytest.mark.slow
 def test_the_host_controller_example_holds_a_tilt_that_open_loop_does_not(capsys, monkeypatch):
     """examples/host_ankle_loop.py through --host-controller: the firmware laws off, the PC's
     loop over the serial toolbox holds 20 deg; the same run without it falls (13 deg is the
@@ -124,6 +125,7 @@ def test_the_host_controller_example_holds_a_tilt_that_open_loop_does_not(capsys
     assert on["host_controller_calls"] == pytest.approx((on["duration_s"] - on["boot_s"]) / 0.02, abs=3)
 
 
+@pytest.mark.slow
 def test_the_firmware_law_example_holds_a_tilt(capsys, monkeypatch):
     """examples/cop_pd_law.py through --law: the plug-in runs on both leg boards (its own
     margin, not the built-in law's) and the robot stands a 20 deg tilt."""

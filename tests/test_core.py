@@ -51,6 +51,7 @@ def test_the_install_runs_the_compiled_core_and_version_says_so():
     assert r.returncode == 0 and r.stdout.strip().endswith("(core: compiled)"), r.stdout + r.stderr
 
 
+@pytest.mark.slow
 def test_pure_python_env_loads_every_module_from_its_source():
     kind, modules = (_python(PROBE, pure=True).splitlines() + [""])[:2]
     assert kind == "python"

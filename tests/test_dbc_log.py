@@ -7,10 +7,12 @@ import subprocess
 import sys
 
 import can
+import pytest
 
 from humanoid_twin.protocol import canframes as cf
 
 
+@pytest.mark.slow       # a CLI run in a subprocess
 def test_a_runs_can_log_decodes_with_named_forces_and_can_state(tmp_path):
     log = tmp_path / "stand.asc"
     # SCU 1's controller is forced bus-off at 3.0 s: it recovers at its next tick and says so in

@@ -136,6 +136,7 @@ def _scripted_run(seed: int) -> tuple[list, bytes, np.ndarray, np.ndarray]:
     return out, bytes(serial_in), np.asarray(traj.position), qpos
 
 
+@pytest.mark.slow
 def test_same_seed_same_bytes_and_trajectories():
     a = _scripted_run(seed=11)
     b = _scripted_run(seed=11)
@@ -202,6 +203,7 @@ def _bcc(*b: int) -> int:
     return x
 
 
+@pytest.mark.slow
 def test_plain_pyserial_client_over_a_pty(serve):
     proc, port = serve("--pty")
     try:
@@ -241,6 +243,7 @@ DRIVER_CLIENT = r"""
 """
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("mode", ["pty", "tcp"])
 def test_host_drivers_unchanged_against_serve(mode, serve):
     proc, port = serve("--tcp", "0") if mode == "tcp" else serve("--pty")
@@ -258,6 +261,7 @@ def test_host_drivers_unchanged_against_serve(mode, serve):
     assert abs(abs(final[0, 2]) - 20) <= 2 and abs(abs(final[1, 2]) - 20) <= 2
 
 
+@pytest.mark.slow
 def test_serve_keeps_real_time(serve):
     proc, port = serve("--tcp", "0")
     try:
@@ -280,6 +284,7 @@ killcom(H)
 """
 
 
+@pytest.mark.slow
 def test_serve_speed_slows_the_twin_down(serve):
     """Issue 25: `serve --speed X` paces the twin at X times real time (the pacer supported it, the
     CLI did not). At 0.5 the 2.65 s boot takes 5.3 s of wall time (at 1x: 2.7 s). The pacer

@@ -3,13 +3,15 @@
 
 from __future__ import annotations
 
+import argparse
 import json
 import subprocess
 import sys
 
 import pytest
 
-from humanoid_twin.faults import FaultInjector, FaultSpecError, parse_fault
+from humanoid_twin import faults
+from humanoid_twin.faults import FaultInjector, FaultKind, FaultSpecError, parse_fault
 from humanoid_twin.host import drivers
 from humanoid_twin.master.supervisor import SupervisorConfig
 from humanoid_twin.protocol.canframes import SFLAGS_WATCHDOG
@@ -50,6 +52,68 @@ def test_parse_bad_specs_one_line(text) -> None:
     with pytest.raises(FaultSpecError) as exc:
         parse_fault(text)
     assert "\n" not in str(exc.value) and repr(text) in str(exc.value)
+
+
+# --- the registry: a kind is one entry ------------------------------------------------------------
+def test_a_new_kind_is_one_registry_entry() -> None:
+    """A throwaway kind, registered once, is parsed, started and ended on a twin's clock, listed
+    in the CLI's help and the docs table, and composes (two at once on one joint add up)."""
+    from humanoid_twin.cli.fault_options import add_fault_options
+
+    def parse(text: str, arg_s: str) -> float:
+        try:
+            return float(arg_s)
+        except ValueError:
+            raise FaultSpecError(f"bad --fault {text!r}: NM must be a number") from None
+
+    def load(inj: FaultInjector, spec) -> None:   # start and end: what the active set makes of it
+        inj.twin.plant.set_external_torque("r_knee", inj.effective(spec))
+
+    kind = faults.register(FaultKind("knee-load", "NM", parse, load, load, "a torque on the right knee",
+                                     combine=lambda args: float(sum(args))))
+    try:
+        assert parse_fault("knee-load:0.5@0.1-0.3").arg == 0.5
+        with pytest.raises(FaultSpecError, match="NM must be a number"):
+            parse_fault("knee-load:x")
+        ap = argparse.ArgumentParser(formatter_class=lambda prog: argparse.HelpFormatter(prog, width=10_000))
+        add_fault_options(ap)
+        assert "push:NEWTONS, knee-load:NM (docs/supervisor.md)" in ap.format_help()
+        assert ap.parse_args(["--fault", "knee-load:1"]).fault[0].arg == 1.0
+        assert "| `knee-load` | NM | a torque on the right knee |" in faults.kinds_markdown()
+        with Twin(seed=0) as twin:
+            specs = [parse_fault("knee-load:0.5@0.1-0.3"), parse_fault("knee-load:0.25@0.2")]
+            inj = FaultInjector(twin, specs).install()
+            torque = []
+            for t_us in (50_000, 150_000, 250_000, 350_000):
+                twin.advance_to(t_us)
+                torque.append(float(twin.plant.data.qfrc_applied[twin.plant.model.joint("r_knee").dofadr[0]]))
+        assert torque == [0.0, 0.5, 0.75, 0.25]
+        assert [(t, what, s.arg) for t, what, s in inj.events] == [
+            (100_000, "start", 0.5), (200_000, "start", 0.25), (300_000, "end", 0.5)]
+    finally:
+        faults.unregister(kind.name)
+    with pytest.raises(FaultSpecError, match="unknown kind 'knee-load'"):
+        parse_fault("knee-load:0.5")
+
+
+def test_the_docs_table_of_kinds_is_the_registry() -> None:
+    from pathlib import Path
+
+    doc = (Path(__file__).resolve().parent.parent / "docs" / "supervisor.md").read_text()
+    block = doc.split("<!-- generated: fault-kinds -->\n")[1].split("<!-- end generated: fault-kinds -->")[0]
+    assert block == faults.kinds_markdown(), "run scripts/gen_docs.py"
+    assert [line.split("`")[1] for line in block.splitlines()[2:]] == list(faults.KINDS)
+
+
+def test_faults_import_nothing_of_the_cli() -> None:
+    import ast
+    from pathlib import Path
+
+    for mod in ("faults.py", "fault_compose.py"):
+        tree = ast.parse((Path(faults.__file__).parent / mod).read_text())
+        names = [n.module or "" for n in ast.walk(tree) if isinstance(n, ast.ImportFrom)]
+        names += [a.name for n in ast.walk(tree) if isinstance(n, ast.Import) for a in n.names]
+        assert not [n for n in names if n.startswith("humanoid_twin.cli")], mod
 
 
 # --- survivable faults: nothing false raised, the robot stands ----------------------------------
@@ -169,6 +233,7 @@ def _cli(*args: str, cwd) -> subprocess.CompletedProcess:
                           capture_output=True, text=True, timeout=120)
 
 
+@pytest.mark.slow
 def test_cli_exit_codes_and_summary(tmp_path) -> None:
     out = tmp_path / "x.rrd"
     bad = _cli("run", "stand", "--fault", "silent:9", "--out", str(out), cwd=tmp_path)

@@ -54,6 +54,8 @@ from typing import Any
 
 import pytest
 
+pytestmark = pytest.mark.slow       # subprocess-heavy: skipped by `pytest -m "not slow"` (README)
+
 PINNED_COMMIT = "a9c82b3 + issue 26"
 DETAILS = Path(__file__).with_name("golden") / "golden.json"
 PURE_PYTHON_ENV = "HUMANOID_TWIN_PURE_PYTHON"

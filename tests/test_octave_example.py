@@ -16,6 +16,8 @@ from pathlib import Path
 
 import pytest
 
+pytestmark = pytest.mark.slow       # subprocess-heavy: skipped by `pytest -m "not slow"` (README)
+
 EXAMPLE_DIR = Path(__file__).resolve().parent.parent / "examples" / "octave"
 INSTALL = "Debian, Ubuntu: apt install octave octave-instrument-control"
 

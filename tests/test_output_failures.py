@@ -23,6 +23,8 @@ from humanoid_twin.cli import main as cli
 from humanoid_twin.recording import Recorder, read_rrd_rows, verify_rrd
 from humanoid_twin.twin import Twin
 
+pytestmark = pytest.mark.slow       # subprocess-heavy: skipped by `pytest -m "not slow"` (README)
+
 CLI = [sys.executable, "-m", "humanoid_twin.cli.main"]
 
 

@@ -143,6 +143,7 @@ def _rss_mb() -> float:
     raise AssertionError("no VmRSS")
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc/self/status")
 def test_memory_stays_flat_over_a_long_recording(tmp_path):
     """60 simulated seconds sent in 0.5 s batches (4x the default's chunks, to make growth

@@ -20,6 +20,8 @@ import serial
 
 from humanoid_twin.protocol.rs232 import PARAM_TEST, TEST_MESSAGE, Op, encode_request
 
+pytestmark = pytest.mark.slow       # subprocess-heavy: skipped by `pytest -m "not slow"` (README)
+
 TEST_REQUEST = encode_request(Op.MASTER, 0, PARAM_TEST)
 # a partial frame that, completed by the next client's 0xFF, is a valid APPLY_JOINT (BCC FF^04^5A^5A^04 = FF)
 CRAFTED_LEFTOVER = bytes.fromhex("FF045A5A04")

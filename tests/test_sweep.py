@@ -43,6 +43,7 @@ def two_jobs(tmp_path_factory) -> Path:
     return out
 
 
+@pytest.mark.slow
 def test_grid_rows_equal_single_runs(two_jobs):
     rows = _rows(two_jobs)
     assert [(r["tilt"], r["seed"]) for r in rows] == [("0", "0"), ("0", "1"), ("3", "0"), ("3", "1")]
@@ -62,6 +63,7 @@ def test_grid_rows_equal_single_runs(two_jobs):
     assert rows[0]["cop_error_rms_mm"] != rows[1]["cop_error_rms_mm"]
 
 
+@pytest.mark.slow
 def test_rerun_skips_rows_already_there(two_jobs, capsys):
     before = _rows(two_jobs)
     rc, _, err = _sweep([*GRID, "--out", str(two_jobs)], capsys)
@@ -70,6 +72,7 @@ def test_rerun_skips_rows_already_there(two_jobs, capsys):
     assert _rows(two_jobs) == before        # wall_s unchanged: nothing ran again
 
 
+@pytest.mark.slow
 def test_one_job_gives_the_same_rows_as_two(two_jobs, tmp_path, capsys):
     out = tmp_path / "one.csv"
     rc, _, err = _sweep([*GRID, "--jobs", "1", "--out", str(out)], capsys)
@@ -104,6 +107,7 @@ def _flaky(point: Point) -> dict:
     return {"value": point.seed + 1}
 
 
+@pytest.mark.slow
 def test_a_crashed_worker_is_a_row_and_the_sweep_goes_on(tmp_path):
     points = grid({"mode": ["ok", "raise", "crash", "ok2"]})
     rows = run_sweep(points, _flaky, tmp_path / "t.csv", jobs=1)
@@ -114,6 +118,7 @@ def test_a_crashed_worker_is_a_row_and_the_sweep_goes_on(tmp_path):
     assert [bool(r["error"]) for r in rows2] == [False, True, True, False]
 
 
+@pytest.mark.slow
 def test_parquet_and_csv_read_back_the_same(two_jobs, tmp_path, capsys):
     pq = pytest.importorskip("pyarrow.parquet")
     pacsv = pytest.importorskip("pyarrow.csv")
@@ -162,6 +167,7 @@ def test_bad_table_suffix_and_an_existing_file_kept(tmp_path, capsys):
     assert "not a sweep table" in capsys.readouterr().err
 
 
+@pytest.mark.slow
 def test_plot(two_jobs, tmp_path, capsys):
     png = tmp_path / "p.png"
     rc, stdout, _ = _sweep([*GRID, "--out", str(two_jobs), "--plot", str(png), "--metric",
@@ -169,6 +175,7 @@ def test_plot(two_jobs, tmp_path, capsys):
     assert rc == 0 and png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
+@pytest.mark.slow
 def test_ray_backend_gives_the_same_rows(two_jobs, tmp_path, capsys):
     pytest.importorskip("ray")
     out = tmp_path / "ray.csv"
@@ -177,6 +184,7 @@ def test_ray_backend_gives_the_same_rows(two_jobs, tmp_path, capsys):
     assert _untimed(_rows(out)) == _untimed(_rows(two_jobs))
 
 
+@pytest.mark.slow
 def test_a_run_past_the_timeout_is_a_row_with_its_error(tmp_path, capsys):
     out = tmp_path / "slow.csv"
     rc, stdout, _ = _sweep(["--param", "tilt=0", "--duration", "30", "--timeout", "0.5", "--out", str(out)],
@@ -186,6 +194,7 @@ def test_a_run_past_the_timeout_is_a_row_with_its_error(tmp_path, capsys):
     assert row == {"tilt": "0", "seed": "0", "error": "RuntimeError: timeout: the run took more than 0.5 s"}
 
 
+@pytest.mark.slow
 def test_sigterm_keeps_the_finished_runs_and_a_rerun_resumes(tmp_path):
     out = tmp_path / "t.csv"
     argv = RUN + ["sweep", "stand", "--param", "tilt=0,1,2", "--duration", "10", "--jobs", "1",
@@ -218,6 +227,7 @@ def _listening(pids: set[int]) -> set[str]:
             if c.status == psutil.CONN_LISTEN and c.pid in pids}
 
 
+@pytest.mark.slow
 def test_a_local_ray_listens_on_loopback_only(tmp_path):
     """Issue 25: a local Ray (no --address) opened its GCS, raylet and worker ports on the machine's
     network address; every other server of the project binds loopback."""
@@ -254,6 +264,7 @@ def test_sweep_exit_codes_count_the_failed_runs():
     assert [exit_code(n) for n in (0, 1, 2, 99, 500)] == [0, 101, 102, 199, 199]
 
 
+@pytest.mark.slow
 def test_two_parquet_sweeps_read_as_one_dataset_with_the_users_umask(tmp_path):
     """Issue 25: a column empty in one sweep was Arrow null, an int parameter int64 in one sweep and
     double in another: the folder did not read as one dataset; the tables were created 0600."""

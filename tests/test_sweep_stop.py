@@ -20,6 +20,8 @@ import pytest
 
 from humanoid_twin.cli.main import main
 
+pytestmark = pytest.mark.slow       # subprocess-heavy: skipped by `pytest -m "not slow"` (README)
+
 RUN = [sys.executable, "-m", "humanoid_twin.cli.main"]
 
 

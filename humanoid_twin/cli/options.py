@@ -71,7 +71,7 @@ def add_rig_options(p: argparse.ArgumentParser, out_help: str) -> None:
     """The options of the twin and its instruments (:class:`~humanoid_twin.rig.Rig`), the same
     for ``run`` and ``serve``: ``--out``, ``--can-log``, ``--serial-log``, ``--tilt``, ``--seed``,
     the CAN wire, ``--fault`` / ``--host-link`` and ``--law``."""
-    from humanoid_twin.faults import add_fault_options
+    from humanoid_twin.cli.fault_options import add_fault_options
 
     p.add_argument("--out", type=Path, help=out_help)
     p.add_argument("--can-log", type=Path, help="CAN log to write; format by suffix (.asc .blf .log "
@@ -204,7 +204,7 @@ def rig_fields(args: argparse.Namespace, controllers: dict[str, Any]) -> dict[st
     """The :class:`~humanoid_twin.rig.RigOptions` fields of a parsed ``run`` or ``serve``
     (``controllers``: :func:`check_rig_inputs`'s result); the outputs are set by the caller
     (they are written under temporary names)."""
-    from humanoid_twin.faults import supervisor_config
+    from humanoid_twin.cli.fault_options import supervisor_config
 
     return dict(seed=args.seed, tilt=args.tilt, can_interface=args.can_interface,
                 can_channel=args.can_channel, faults=tuple(args.fault), supervisor=supervisor_config(args),

@@ -34,7 +34,7 @@ import numpy as np
 
 from humanoid_twin.clock import US_PER_S
 from humanoid_twin.hardware import LEG_SCUS, N_SERVOS, PWM_PERIOD_US
-from humanoid_twin.protocol.wire import N_SCU, ControlType
+from humanoid_twin.protocol.wire import N_SCU, ControlType, s8
 
 __all__ = [
     "GAINS",
@@ -186,7 +186,7 @@ def control_row(ctype: int | ControlType, gains: Any = None) -> np.ndarray:
     if np.any(g < -128) or np.any(g > 255):
         raise ValueError(f"gains must be bytes (-128..255), got {g.tolist()}")
     row = np.empty((N_SERVOS, 4))
-    row[:, :3] = np.asarray(g, dtype=np.int64) & 0xFF
+    row[:, :3] = [[s8(v) if v < 0 else v for v in r] for r in np.asarray(g, dtype=np.int64).tolist()]
     row[:, 3] = int(ctype)
     return row
 

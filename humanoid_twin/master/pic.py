@@ -59,7 +59,7 @@ class Pic:
     """The Master's PIC18F258: initialisation and interrupt service (table 1)."""
 
     def __init__(self, clock: Clock, usart: Usart, can: MasterCan, db: Database,
-                 supervisor: Supervisor | None = None, pic_mhz: float = DEFAULT_PIC_MHZ) -> None:
+                 supervisor: Supervisor, pic_mhz: float = DEFAULT_PIC_MHZ) -> None:
         self.clock = clock
         self.ips = instructions_per_s(check_pic_mhz(pic_mhz))
         self.isr_cycles = 0          # RX interrupts' cycles since the last timer interrupt
@@ -134,8 +134,7 @@ class Pic:
             if self.slave == 1:
                 if self._round_open:
                     self.db.finish_round()
-                    if self.supervisor is not None:
-                        self.supervisor.on_round()
+                    self.supervisor.on_round()
                 self._round_open = True
             self.can.canSendMsg(self.slave, 0)
             self.slot = 1

@@ -41,7 +41,7 @@ cdef class Supervisor:
     cpdef on_round(self)
     @cython.locals(want=cython.longlong, s=ScuSensors)
     cpdef bint _all_ready(self, long long now)
-    @cython.locals(w=list)
+    @cython.locals(w=list, offset=cython.longlong)
     cpdef object foot_cop_mm(self, long long scu)
     @cython.locals(sensors=dict, cops=list, k=cython.longlong, ys=list)
     cpdef object balance_margin_mm(self)

@@ -12,10 +12,11 @@ Modes (the numbers are the wire's, ``FD MODE ...``)::
     any mode but estop --fault--> safe 3 (latched)       any mode --estop--> estop 4
     safe / estop --reset--> self_check 1                  ready --PWM off on every board--> standby 0
 
-It is called from three places: :meth:`on_request` by ``usartProcessMsg`` for every valid host
-request (it may refuse an APPLY, or answer the supervisor request itself), :meth:`on_round` by
-the timer interrupt when a CAN schedule round closes (every 8 ms: the detection), and nothing
-else: it puts nothing on the CAN bus of its own (an emergency stop only clears the PWM bit of
+It is called from two places: by ``usartProcessMsg`` for every valid host request
+(:meth:`host_frame`; :meth:`apply_allowed` and :meth:`refusal`, which may refuse an APPLY;
+:meth:`applied`; the supervisor request's :meth:`read`, :meth:`estop` and :meth:`reset`), and
+:meth:`on_round` by the timer interrupt when a CAN schedule round closes (every 8 ms: the
+detection). It puts nothing on the CAN bus of its own (an emergency stop only clears the PWM bit of
 the actuation packets the schedule already sends).
 """
 
@@ -26,7 +27,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, NamedTuple
 
 from humanoid_twin.clock import US_PER_S
-from humanoid_twin.hardware import FOOT_OF_SCU, FORCE_SENSOR_XY_MM, PWM_PERIOD_US
+from humanoid_twin.hardware import FOOT_OF_SCU, FORCE_CALIBRATION_VALUE, FORCE_SENSOR_XY_MM, PWM_PERIOD_US
 from humanoid_twin.master.pic import ROUND_US
 from humanoid_twin.protocol.canframes import SFLAGS2_LAW, SFLAGS_CAN_STATE
 from humanoid_twin.protocol.rs232 import PARAM_SPECIAL, SUPERVISOR_FAULTS, SUPERVISOR_MODES, Op
@@ -333,9 +334,10 @@ class Supervisor:
     def foot_cop_mm(self, scu: int) -> tuple[int, int] | None:
         """The Master's firmware CoP ``(x, y)`` (mm, foot frame) of leg board ``scu``: ``calcCoP``
         on the forces of its last Sensors 2 packet, each taken as ``reading - 128 + calib_load``
-        7-bit counts (as host/cop.py does); None when the foot is unloaded."""
-        load = self.config.balance_calib_load
-        w = [max(v - 128 + load, 0) for v in self.db.sensors[scu].special]
+        7-bit counts (128: ``hardware.FORCE_CALIBRATION_VALUE``, the reading at the calibrated
+        load; as host/cop.py does); None when the foot is unloaded."""
+        offset = self.config.balance_calib_load - FORCE_CALIBRATION_VALUE
+        w = [max(v + offset, 0) for v in self.db.sensors[scu].special]
         x, y, loaded = calcCoP(w)
         return (x, y) if loaded else None
 

@@ -67,7 +67,7 @@ class Usart:
     """The Master's USART: receive buffer, external (request) buffer, transmit buffer."""
 
     def __init__(self, clock: Clock, link: SerialLink, db: Database, can: MasterCan,
-                 supervisor: Supervisor | None = None) -> None:
+                 supervisor: Supervisor) -> None:
         self.clock = clock
         self.supervisor = supervisor
         self.link = link
@@ -217,14 +217,13 @@ class Usart:
         d = req.data
         db = self.db
         sup = self.supervisor
-        if sup is not None:
-            sup.host_frame()
-            if op <= _OP_APPLY_CONTROL and not sup.apply_allowed():
-                # docs/supervisor.md: in safe / estop every APPLY is refused
-                self.last_invalid = sup.refusal()
-                sup.refused += 1
-                self.usartSendStatus(MESSAGE_INVREQ)
-                return
+        sup.host_frame()
+        if op <= _OP_APPLY_CONTROL and not sup.apply_allowed():
+            # docs/supervisor.md: in safe / estop every APPLY is refused
+            self.last_invalid = sup.refusal()
+            sup.refused += 1
+            self.usartSendStatus(MESSAGE_INVREQ)
+            return
         if op == _OP_APPLY_JOINT:
             a = db.actuators[scu]
             if param == PARAM_POSITION:
@@ -236,8 +235,7 @@ class Usart:
                 if d[1] == 1:
                     db.request_calibration(scu)
             a.invalidate()
-            if sup is not None:
-                sup.applied(op, param, d)
+            sup.applied(op, param, d)
             self.usartSendStatus(MESSAGE_SUCCESS)
         elif op == _OP_APPLY_CONTROL:
             a = db.actuators[scu]
@@ -283,10 +281,6 @@ class Usart:
         """MASTER param 2 (docs/supervisor.md): D1 0 read -> ``FD MODE FAULT NODE NFAULTS``,
         1 emergency stop -> FB echo, 2 reset -> FB echo (D1 > 2 was refused by the validation)."""
         sup = self.supervisor
-        if sup is None:
-            self.last_invalid = "this Master has no supervisor"
-            self.usartSendStatus(MESSAGE_INVREQ)
-            return
         if d1 == SUPERVISOR_READ:
             self._load_tx(data_response(*sup.read()))
             return

@@ -3,7 +3,9 @@
 What each Slave board sees and does on its servo and sensor cables (seed 000 section 3, module
 PIC2: ``servoActuation``, ``updateServoMeasures``, ``sampleExtraSensors``), implemented on the
 MuJoCo model shipped in the package, ``humanoid_twin/models/`` (its README.md gives the source of
-every number; docs/model.md), plus ground truth for recording and tests.
+every number; docs/model.md). Ground truth (for recording and tests) is computed in
+``plant/truth.py``, the drawing geometry and the viewer window in ``plant/drawing.py``; the
+:class:`Plant` syncs its physics to its clock before it hands either out.
 
 Hot paths (``set_pwm``, ``read_servos``, ``read_force_adc``, ``advance_to``) are called about
 1200 times per simulated second: they use precomputed addresses, plain Python ints and floats,
@@ -17,10 +19,9 @@ import numbers
 import sys
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
-from typing import Any, NamedTuple
+from typing import Any
 
 import mujoco
 import numpy as np
@@ -28,8 +29,9 @@ import numpy as np
 from humanoid_twin import hardware
 from humanoid_twin.clock import US_PER_S
 from humanoid_twin.plant import constants as C  # noqa: N812
-from humanoid_twin.plant.geometry import convex_hull, signed_distance
+from humanoid_twin.plant.drawing import WXYZ_TO_XYZW, Drawing, GeomInfo, ViewerWindow  # noqa: F401 (recorder)
 from humanoid_twin.plant.imu import TrunkImu
+from humanoid_twin.plant.truth import FOOT_BODIES, GroundTruth, TruthProbe
 from humanoid_twin.protocol.wire import N_SCU, POS_LIMIT_DEG, check_scu
 
 # The model ships inside the package (MuJoCo Menagerie / dm_control style) and is read with
@@ -39,18 +41,11 @@ MODELS = resources.files("humanoid_twin") / "models"
 DEFAULT_MODEL_NAME = "scene.xml"
 DEFAULT_MODEL = Path(str(MODELS / DEFAULT_MODEL_NAME))   # where it is on disk (an installed package)
 
-FOOT_BODIES: tuple[str, str] = ("r_foot", "l_foot")
 PAD_SUFFIXES: tuple[str, str, str, str] = ("fl", "fr", "rl", "rr")   # table 12 order
 TILT_MAX_DEG = 45.0                # the platform tilts at most this far (either way)
 _TILT_MAX_DEG = TILT_MAX_DEG
-WXYZ_TO_XYZW = [1, 2, 3, 0]        # MuJoCo's quaternion order (w, x, y, z) to (x, y, z, w)
 _TILT_PROFILE_CHUNK_US = 10_000    # a tilt profile is re-evaluated at least every 10 ms
 _NOISE_BLOCK = 8192
-_GEOM_TYPES = {int(v): k for k, v in {
-    "plane": mujoco.mjtGeom.mjGEOM_PLANE, "sphere": mujoco.mjtGeom.mjGEOM_SPHERE,
-    "capsule": mujoco.mjtGeom.mjGEOM_CAPSULE, "ellipsoid": mujoco.mjtGeom.mjGEOM_ELLIPSOID,
-    "cylinder": mujoco.mjtGeom.mjGEOM_CYLINDER, "box": mujoco.mjtGeom.mjGEOM_BOX,
-}.items()}
 
 
 class PlantError(Exception):
@@ -59,135 +54,6 @@ class PlantError(Exception):
 
 class PlantInputError(PlantError, ValueError):
     """A caller passed an invalid argument (SCU address, pulse width, tilt, ...)."""
-
-
-class PlainTruth(NamedTuple):
-    """The per-foot and polygon fields of a :class:`GroundTruth` as plain Python values (the same
-    numbers), for a reader that copies them elsewhere (the recorder): no arrays made and read
-    back. Feet in ``FOOT_BODIES`` order."""
-
-    pad_forces_n: list[float]                          # 8: each foot's four pads, table 12 order
-    foot_cop_mm: list[tuple[float, float] | None]      # per foot; None when unloaded
-    cop_world_xy: tuple[float, float] | None           # None when airborne
-    support_polygon_xy: list[tuple[float, float]]      # the hull, counter-clockwise
-
-
-class GroundTruth:
-    """What really happens in the plant at ``t_s`` (for recording and tests, never for firmware).
-
-    World frame: x forward, y left, z up, metres. Foot frame (table 12): x to the robot's right,
-    y forward, millimetres, origin on the sole under the ankle. Feet are keyed ``r_foot`` /
-    ``l_foot``; pad arrays follow table 12 order (front-left, front-right, rear-left, rear-right).
-    Forces are the normal components of the MuJoCo contact forces of the pads (not the touch
-    sensors).
-
-    Read-only. The balance figures (tilt, height, CoP margin, total force, ``fell``) are computed
-    at the sample; the rest (per-foot forces and CoPs, the joint angles, the polygon, the CoM)
-    on first read, from what the plant copied at the sample (the loaded contacts, the CoM, the
-    joint positions and the soles' poses): a reader that only wants the balance (the run
-    monitor) does not pay for them. :meth:`plain` gives the per-foot and polygon fields as
-    plain Python values.
-    """
-
-    __slots__ = ("t_s", "trunk_tilt_deg", "trunk_height_m", "cop_margin_mm", "total_normal_force_n", "fell",
-                 "_derive", "_derived", "_arrays")
-
-    t_s: float
-    trunk_tilt_deg: float                    # angle between the trunk z axis and the vertical
-    trunk_height_m: float                    # trunk origin height (0.29 m at the stand pose)
-    cop_margin_mm: float                     # signed distance of the CoP inside it; -inf airborne
-    total_normal_force_n: float
-    fell: bool
-
-    def __init__(self, t_s: float, trunk_tilt_deg: float, trunk_height_m: float, cop_margin_mm: float,
-                 total_normal_force_n: float, fell: bool,
-                 derive: Callable[[], tuple[np.ndarray, dict[str, float], PlainTruth]]) -> None:
-        init = object.__setattr__
-        init(self, "t_s", t_s)
-        init(self, "trunk_tilt_deg", trunk_tilt_deg)
-        init(self, "trunk_height_m", trunk_height_m)
-        init(self, "cop_margin_mm", cop_margin_mm)
-        init(self, "total_normal_force_n", total_normal_force_n)
-        init(self, "fell", fell)
-        init(self, "_derive", derive)
-        init(self, "_derived", None)
-        init(self, "_arrays", None)
-
-    def __setattr__(self, name: str, value: Any) -> None:
-        raise AttributeError(f"GroundTruth is read-only (cannot set {name!r})")
-
-    def _fields(self) -> tuple[np.ndarray, dict[str, float], PlainTruth]:
-        got = self._derived
-        if got is None:
-            got = self._derive()
-            object.__setattr__(self, "_derived", got)
-        return got
-
-    def plain(self) -> PlainTruth:
-        """The per-foot forces and CoPs, the overall CoP and the polygon as plain Python values."""
-        return self._fields()[2]
-
-    def _array_fields(self) -> tuple:
-        got = self._arrays
-        if got is None:
-            pads, cops, cop, hull = self._fields()[2]
-            got = ({foot: np.array(pads[4 * f:4 * f + 4]) for f, foot in enumerate(FOOT_BODIES)},
-                   {foot: None if c is None else np.array(c)
-                    for foot, c in zip(FOOT_BODIES, cops, strict=True)},
-                   None if cop is None else np.array(cop),
-                   np.array(hull, dtype=float).reshape(-1, 2))
-            object.__setattr__(self, "_arrays", got)
-        return got
-
-    @property
-    def com(self) -> np.ndarray:
-        """(3,) whole-robot centre of mass, world."""
-        return self._fields()[0]
-
-    @property
-    def joint_angles_deg(self) -> dict[str, float]:
-        """Every hinge joint's angle, joint frame, degrees."""
-        return self._fields()[1]
-
-    @property
-    def pad_forces_n(self) -> dict[str, np.ndarray]:
-        """(4,) per foot: the pads' normal contact forces (N)."""
-        return self._array_fields()[0]
-
-    @property
-    def foot_cop_mm(self) -> dict[str, np.ndarray | None]:
-        """(2,) per foot in its foot frame (mm); None when the foot is unloaded."""
-        return self._array_fields()[1]
-
-    @property
-    def cop_world_xy(self) -> np.ndarray | None:
-        """(2,) the whole robot's CoP (world, m); None when airborne."""
-        return self._array_fields()[2]
-
-    @property
-    def support_polygon_xy(self) -> np.ndarray:
-        """(k, 2) convex hull of the pads in contact, counter-clockwise (world, m)."""
-        return self._array_fields()[3]
-
-    def __repr__(self) -> str:
-        return (f"GroundTruth(t_s={self.t_s!r}, trunk_tilt_deg={self.trunk_tilt_deg!r}, "
-                f"trunk_height_m={self.trunk_height_m!r}, cop_margin_mm={self.cop_margin_mm!r}, "
-                f"total_normal_force_n={self.total_normal_force_n!r}, fell={self.fell!r})")
-
-
-@dataclass(frozen=True)
-class GeomInfo:
-    """A geom to draw: its body, MuJoCo type name, size (MuJoCo convention), pose in the body
-    frame (quaternion xyzw) and colour."""
-
-    name: str
-    body: str
-    type: str
-    size: tuple[float, float, float]
-    pos: tuple[float, float, float]
-    quat_xyzw: tuple[float, float, float, float]
-    rgba: tuple[float, float, float, float]
-    group: int
 
 
 def _check_scu(scu: int) -> None:
@@ -305,13 +171,14 @@ class Plant:
         hinges = [j for j in range(m.njnt) if m.jnt_type[j] == mujoco.mjtJoint.mjJNT_HINGE]
         self._joint_names = [m.joint(j).name for j in hinges]
         self._joint_qadr = np.array([m.jnt_qposadr[j] for j in hinges], dtype=np.int64)
-        self._body_names = tuple(m.body(b).name for b in range(1, m.nbody))
-        self._force6 = np.zeros(6)
         # pad index 0..7 (foot * 4 + table-12 index) of every geom, -1 for the other geoms
-        self._pad_list: list[int] = [-1] * m.ngeom
+        pad_list: list[int] = [-1] * m.ngeom
         for g, (f, k) in self._pad_of_geom.items():
-            self._pad_list[g] = 4 * f + k
-        self._pyramidal = m.opt.cone == mujoco.mjtCone.mjCONE_PYRAMIDAL
+            pad_list[g] = 4 * f + k
+        self._truth = TruthProbe(m, self.data, trunk=self._trunk, sole_sites=self._sole_sites,
+                                 pad_list=pad_list, joint_names=self._joint_names,
+                                 joint_qadr=self._joint_qadr)
+        self._drawing = Drawing(m, self.data, self._pad_of_geom)
 
         # the hardware: potentiometer offsets, drawn once per plant (what calibration estimates)
         ss = np.random.SeedSequence(self.seed)
@@ -685,66 +552,9 @@ class Plant:
         key = (self.t_us, self._tilt_deg, self._epoch, self.data.qpos.tobytes(), self.data.qvel.tobytes())
         if self._truth_key == key:
             return self._truth_cached
-        self._truth_cached = self._compute_truth()
+        self._truth_cached = self._truth.compute(self.t_us, self._tilt_deg)
         self._truth_key = key
         return self._truth_cached
-
-    def _compute_truth(self) -> GroundTruth:
-        d = self.data
-        # the trunk z axis' vertical component: element (2, 2) of the trunk's rotation matrix
-        tilt = math.degrees(math.acos(max(-1.0, min(1.0, float(d.xmat[self._trunk, 8])))))
-        height = float(d.xpos[self._trunk, 2])
-        fell = self._fallen(tilt)
-
-        pids, fns, pts = self._loaded_contacts()
-        pad_f = [0.0] * 8
-        wx = wy = 0.0
-        for p, f, xyz in zip(pids, fns, pts, strict=True):
-            pad_f[p] += f
-            wx += f * xyz[0]
-            wy += f * xyz[1]
-        foot_tot = (pad_f[0] + pad_f[1] + pad_f[2] + pad_f[3], pad_f[4] + pad_f[5] + pad_f[6] + pad_f[7])
-        total = foot_tot[0] + foot_tot[1]
-        hull = convex_hull(pts)
-        if total > C.LOADED_MIN_N:
-            cop_xy: tuple[float, float] | None = (wx / total, wy / total)
-            margin = signed_distance(cop_xy, hull) * 1000.0  # type: ignore[arg-type]
-        else:
-            cop_xy = None
-            margin = -math.inf
-        # what the other fields need, copied now (one copy each); they are derived on first read
-        com = d.subtree_com[self._trunk].copy()
-        qpos = d.qpos[self._joint_qadr]
-        site_pos = d.site_xpos
-        site_mat = d.site_xmat
-        soles = [(site_pos[s].tolist(), site_mat[s].tolist()) for s in self._sole_sites]
-
-        def derive() -> tuple[np.ndarray, dict[str, float], PlainTruth]:
-            cops = [_foot_cop(f, pids, fns, pts, foot_tot[f], *soles[f])
-                    if foot_tot[f] > C.LOADED_MIN_N else None for f in range(len(FOOT_BODIES))]
-            return (com, dict(zip(self._joint_names, (qpos * _DEG_PER_RAD).tolist(), strict=True)),
-                    PlainTruth(pad_f, cops, cop_xy, hull))
-
-        return GroundTruth(self.t_us / US_PER_S, tilt, height, margin, total, fell, derive)
-
-    # --- the support surface (the platform's top face, tilted or not) ------------------------------
-    def _fallen(self, tilt_deg: float) -> bool:
-        """The fall test against the surface the feet stand on (humanoid_twin/models/README.md,
-        section 9): the trunk origin less than ``FELL_HEIGHT_M`` above the platform's plane (along
-        its normal), or the trunk more than ``FELL_TILT_DEG`` from the vertical *and* from the
-        platform's normal. A robot upright on a tilted platform, or whose feet slide down it, has
-        not fallen."""
-        d = self.data
-        s, c = math.sin(math.radians(self._tilt_deg)), math.cos(math.radians(self._tilt_deg))
-        t = self._trunk
-        # the platform's normal is (-sin, 0, cos) (toes up positive); its top face passes through 0
-        height = -s * float(d.xpos[t, 0]) + c * float(d.xpos[t, 2])
-        if height < C.FELL_HEIGHT_M:
-            return True
-        if tilt_deg <= C.FELL_TILT_DEG:
-            return False
-        cos_n = -s * float(d.xmat[t, 2]) + c * float(d.xmat[t, 8])
-        return math.degrees(math.acos(max(-1.0, min(1.0, cos_n)))) > C.FELL_TILT_DEG
 
     def soles_on_surface_mm(self) -> tuple[tuple[float, float, float], tuple[float, float, float]]:
         """Where each foot's sole origin is on the platform, in the platform's own frame (mm,
@@ -752,56 +562,7 @@ class Plant:
         order): a foot sliding on the platform moves in x, y; a platform tilting under a still
         foot does not move it (``slip_mm`` of a run)."""
         self._sync()
-        s, c = math.sin(math.radians(self._tilt_deg)), math.cos(math.radians(self._tilt_deg))
-        pos = self.data.site_xpos
-        out = []
-        for site in self._sole_sites:
-            x, y, z = pos[site].tolist()
-            out.append(((c * x + s * z) * 1000.0, y * 1000.0, (c * z - s * x) * 1000.0))
-        return out[0], out[1]
-
-    def _loaded_contacts(self, foot: int = -1) -> tuple[list[int], list[float], list[list[float]]]:
-        """Pad/ground contacts pressing on the pads (of foot index ``foot``, or of both): pad
-        index 0..7 (foot * 4 + table-12 index), normal force (N, as ``mj_contactForce`` gives
-        it) and world position (m). Plain Python over the handful of contacts: cheaper than
-        numpy's per-call cost on such small arrays."""
-        d = self.data
-        n = d.ncon
-        pids: list[int] = []
-        fns: list[float] = []
-        pts: list[list[float]] = []
-        if not n:
-            return pids, fns, pts
-        con = d.contact                      # the ncon contacts, no more
-        pad = self._pad_list
-        geoms = con.geom.tolist()
-        adrs = con.efc_address.tolist()
-        dims = con.dim.tolist()
-        pos = con.pos.tolist()
-        ef: list[float] | None = None
-        pyramidal = self._pyramidal
-        for c in range(n):
-            g0, g1 = geoms[c]
-            p = pad[g0]
-            q = pad[g1]
-            if q > p:
-                p = q
-            a = adrs[c]
-            if p < 0 or a < 0 or (foot >= 0 and p >> 2 != foot):
-                continue
-            if pyramidal and dims[c] == 3:
-                # pyramidal cone: the normal force is the sum of the pyramid's edge forces
-                if ef is None:
-                    ef = d.efc_force.tolist()
-                f = ef[a] + ef[a + 1] + ef[a + 2] + ef[a + 3]
-            else:
-                mujoco.mj_contactForce(self.model, d, c, self._force6)
-                f = float(self._force6[0])
-            if f > 0.0:
-                pids.append(p)
-                fns.append(f)
-                pts.append(pos[c])
-        return pids, fns, pts
+        return self._truth.soles_on_surface_mm(self._tilt_deg)
 
     def foot_cop_mm(self, foot: str) -> np.ndarray | None:
         """Ground-truth CoP of one foot (foot frame, mm), None when unloaded: the part of
@@ -809,28 +570,20 @@ class Plant:
         self._sync()
         if foot not in FOOT_BODIES:
             raise PlantInputError(f"unknown foot {foot!r}; the feet are {', '.join(FOOT_BODIES)}")
-        f = FOOT_BODIES.index(foot)
-        pids, fns, pts = self._loaded_contacts(f)
-        tot = sum(fns)
-        if not tot > C.LOADED_MIN_N:
-            return None
-        s = self._sole_site[foot]
-        d = self.data
-        return np.array(_foot_cop(f, pids, fns, pts, tot, d.site_xpos[s].tolist(), d.site_xmat[s].tolist()))
+        return self._truth.foot_cop_mm(FOOT_BODIES.index(foot))
 
+    # --- drawing ----------------------------------------------------------------------------------
     def body_poses(self) -> tuple[tuple[str, ...], np.ndarray, np.ndarray]:
         """Names, world positions (n, 3) and quaternions (n, 4, xyzw) of every body but the world."""
         self._sync()
-        pos, quat = self.body_pose_views()
-        return self._body_names, pos.copy(), quat[:, WXYZ_TO_XYZW]     # (an index array copies)
+        return self._drawing.body_poses()
 
     def body_pose_views(self) -> tuple[np.ndarray, np.ndarray]:
         """Live views (no copy) of the world positions (n, 3) and quaternions (n, 4, MuJoCo's order
         w x y z; ``[:, WXYZ_TO_XYZW]`` gives x y z w) of every body but the world, in
         :meth:`body_poses` order: they follow the plant as it steps, so a caller copies them at
         the instant it wants (with the plant synced to its clock: after :meth:`truth`, say)."""
-        d = self.data
-        return d.xpos[1:], d.xquat[1:]
+        return self._drawing.body_pose_views()
 
     def geometry(self) -> list[GeomInfo]:
         """The geoms to draw: visual geoms (group 2), force-sensor pads, platform and floor.
@@ -838,26 +591,13 @@ class Plant:
         Poses are local to the body (``body_poses`` gives the body's world pose); the floor and
         the other world geoms are in the world body ``world``.
         """
-        m = self.model
-        out = []
-        for g in range(m.ngeom):
-            name = m.geom(g).name
-            if m.geom_group[g] != 2 and g not in self._pad_of_geom and name not in ("platform", "floor"):
-                continue
-            mat = m.geom_matid[g]
-            rgba = m.mat_rgba[mat] if mat >= 0 else m.geom_rgba[g]
-            q = m.geom_quat[g]
-            out.append(GeomInfo(
-                name=name,
-                body=m.body(m.geom_bodyid[g]).name,
-                type=_GEOM_TYPES.get(int(m.geom_type[g]), str(int(m.geom_type[g]))),
-                size=tuple(float(x) for x in m.geom_size[g]),  # type: ignore[arg-type]
-                pos=tuple(float(x) for x in m.geom_pos[g]),  # type: ignore[arg-type]
-                quat_xyzw=(float(q[1]), float(q[2]), float(q[3]), float(q[0])),
-                rgba=tuple(float(x) for x in rgba),  # type: ignore[arg-type]
-                group=int(m.geom_group[g]),
-            ))
-        return out
+        return self._drawing.geometry()
+
+    def open_viewer(self) -> ViewerWindow:
+        """MuJoCo's passive viewer window on this plant (``humanoid-twin run --viewer``): its
+        :meth:`~ViewerWindow.draw` shows the robot with the physics run up to the clock's now.
+        :class:`~humanoid_twin.plant.drawing.ViewerWindowError` when no window can be opened."""
+        return ViewerWindow(self.model, self.data, self._sync)
 
     # --- frames --------------------------------------------------------------------------------------
     def _sole(self, side: str) -> int:
@@ -886,20 +626,3 @@ _DEG_PER_RAD = 180.0 / math.pi
 _COUNTS_PER_N = 1.0 / hardware.FORCE_N_PER_COUNT
 _SIDES = {"r": "r_foot", "right": "r_foot", "r_foot": "r_foot",
           "l": "l_foot", "left": "l_foot", "l_foot": "l_foot"}
-
-
-def _foot_cop(f: int, pids: list[int], fns: list[float], pts: list[list[float]], total: float,
-              sole_pos: list[float], sole_mat: list[float]) -> tuple[float, float]:
-    """CoP (foot frame, mm) of foot index ``f`` from the loaded contacts (``total``: its load):
-    the force-weighted mean contact point, in the frame of the sole site (``sole_pos``: its world
-    position, ``sole_mat``: its rotation matrix, row-major)."""
-    sx = sy = sz = 0.0
-    for p, fn, xyz in zip(pids, fns, pts, strict=True):
-        if p >> 2 == f:
-            sx += fn * xyz[0]
-            sy += fn * xyz[1]
-            sz += fn * xyz[2]
-    o = sole_pos
-    r = sole_mat
-    vx, vy, vz = sx / total - o[0], sy / total - o[1], sz / total - o[2]
-    return ((vx * r[0] + vy * r[3] + vz * r[6]) * 1000.0, (vx * r[1] + vy * r[4] + vz * r[7]) * 1000.0)

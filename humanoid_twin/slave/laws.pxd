@@ -7,6 +7,7 @@
 # PIC's 32-bit long: C long long arithmetic with no possible overflow.
 cimport cython
 
+from humanoid_twin.protocol.wire cimport from_s8
 from humanoid_twin.slave.data cimport jacobianMatrix
 
 cdef long N_SERVOS

@@ -46,7 +46,7 @@ from typing import Any
 
 from humanoid_twin.cycles import LAW
 from humanoid_twin.hardware import N_SERVOS
-from humanoid_twin.protocol.wire import POS_LIMIT_DEG
+from humanoid_twin.protocol.wire import POS_LIMIT_DEG, ControlType, from_s8
 from humanoid_twin.slave.data import jacobianMatrix
 
 __all__ = [
@@ -83,8 +83,8 @@ ONE_DEG_PER_TICK = 1 << 16           # velocity unit: 1/65536 degree per 20 ms t
 VELOCITY_MAX = (1 << 31) - 1         # a velocity must fit the PIC's signed 32-bit long
 VELOCITY_MIN = -(1 << 31)
 
-# Table 9: the wire's control types, by the name the CLI uses.
-CONTROL_TYPES: dict[str, int] = {"none": 0, "locomotion": 1, "reaction": 2, "balance": 3}
+# Table 9: the wire's control types, by the name the CLI uses (protocol/wire.ControlType.label).
+CONTROL_TYPES: dict[str, int] = {t.label: int(t) for t in ControlType}
 ENTRY_POINT_GROUP = "humanoid_twin.laws"
 
 PID_SHIFT = 4                # PID command u in 1/16 degree: gain byte K = K/16 (Q4.4)
@@ -193,8 +193,7 @@ def balance_gain_bytes(kp: int, kd: int) -> tuple[int, int]:
     """The gain of a balance law from a servo's KP and KD bytes: ``(KP, shift)`` with KP read as
     a signed char (-128..127: a negative gain moves the foot, not the mass centre; docs/balance.md)
     and ``shift`` the KD byte (0..:data:`GAIN_SHIFT_MAX`), the gain's binary exponent."""
-    if kp > 127:
-        kp -= 256
+    kp = from_s8(kp)
     if kd > GAIN_SHIFT_MAX:
         kd = GAIN_SHIFT_MAX
     return kp, kd
@@ -222,7 +221,7 @@ class LocomotionLaw(ControlLaw):
     degrees; output ``(u + 8) >> 4``. :meth:`start` (``initController``): ``u`` = the position
     applied now (bumpless), the past errors taken equal to the first error seen."""
 
-    name = "locomotion"
+    name = ControlType.LOCOMOTION_CONTROL.label
     cycles = LAW[1]
     output = POSITION
 
@@ -272,7 +271,7 @@ class ReactionLaw(ControlLaw):
     positive gain moves the mass centre, and the CoP, toward the reference; a negative gain moves
     the foot (compliance). No action while the foot is unloaded."""
 
-    name = "reaction"
+    name = ControlType.REACTION_CONTROL.label
     cycles = LAW[2]
     output = VELOCITY
     needs_foot = True
@@ -299,7 +298,7 @@ class JacobianLaw(ControlLaw):
     positions (DATA, micrometres per radian), ``e`` = ``inputs.cop_error_mm``, ``e_z = 0``;
     ``v = (KP * J^T e) >> 16`` in 1/256 degree per tick, / 2^KD. No action while unloaded."""
 
-    name = "balance"
+    name = ControlType.BALANCE_CONTROL.label
     cycles = LAW[3]
     output = VELOCITY
     needs_foot = True
@@ -356,7 +355,7 @@ def load_law(ref: str) -> LawFactory:
         if not eps:
             known = sorted(ep.name for ep in entry_points(group=ENTRY_POINT_GROUP))
             raise LawError(f"no law {ref!r}: not module:Class, and no entry point of that name in group "
-                           f"{ENTRY_POINT_GROUP!r} (installed: {', '.join(known) or 'none'})")
+                           f"{ENTRY_POINT_GROUP!r} (installed: {', '.join(known) or 'no law'})")
         try:
             obj = eps[0].load()
         except Exception as exc:

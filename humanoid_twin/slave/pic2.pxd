@@ -55,10 +55,9 @@ cdef class Pic2:
     @cython.locals(i=cython.long, k=cython.long, p=cython.long)
     cpdef setCalibration(self, object b_q, object offsets)
     cpdef updateServoMeasures(self)
-    @cython.locals(b_q=list, pos=list, i=cython.long, p=cython.long, v=cython.long, c=cython.long,
-                   a=cython.long, b=cython.long, w=cython.long)
+    @cython.locals(b_q=list, pos=list, i=cython.long, p=cython.long, v=cython.long)
     cpdef finalizeServoMeasures(self)
     @cython.locals(h=list, m=cython.long, out=cython.long)
     cpdef long filter(self, long i, long raw) except? -9999
-    @cython.locals(f7=list, off=list, sp=list, k=cython.long, r=cython.long)
+    @cython.locals(f7=list, off=list, sp=list, k=cython.long)
     cpdef sampleExtraSensors(self)

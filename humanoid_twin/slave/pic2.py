@@ -228,23 +228,14 @@ class Pic2:
         b_q = self.b_q
         pos = self.pos
         for i in range(N_SERVOS):
-            b = b_q[i]
-            a = adc[i]
-            p = (b - a + _HALF_Q) >> _SHIFT_Q
-            if p > 127:
-                p = 127
-            elif p < -128:
-                p = -128
+            p = position_from_adc(b_q[i], adc[i])
             self.raw_pos[i] = p
             if self.filter_on:
                 p = self.filter(i, p)
-            a = pos[i]
-            v = p - a
+            v = p - pos[i]
             self.vel[i] = 127 if v > 127 else -128 if v < -128 else v
             pos[i] = p
-            w = cur[i]
-            c = (100 * w) // CURRENT_PULSE_FULL_US
-            self.current[i] = 100 if c > 100 else 0 if c < 0 else c
+            self.current[i] = current_from_pulse(cur[i])
 
     def filter(self, i: int, raw: int) -> int:
         """``filter`` (table 17): the non-linear filter (median of the last 3 raw positions)
@@ -279,7 +270,5 @@ class Pic2:
         off = self.offsets
         sp = self.special
         for k in range(N_SPECIAL_SENSORS):
-            r = f8[k] >> 1
-            f7[k] = r
-            r += off[k]
-            sp[k] = 255 if r > 255 else 0 if r < 0 else r
+            f7[k] = f8[k] >> 1
+            sp[k] = force_result(f8[k], off[k])
