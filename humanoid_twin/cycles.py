@@ -19,6 +19,8 @@ import math
 import sys
 from typing import Any
 
+from humanoid_twin.clock import US_PER_S
+
 __all__ = [
     "DEFAULT_PIC_MHZ",
     "CLOCKS_PER_CYCLE",
@@ -86,7 +88,7 @@ def instructions_per_s(pic_mhz: float) -> int:
 
 def cycles_to_us(cycles: int, ips: int) -> int:
     """The virtual microseconds ``cycles`` take at ``ips`` instructions per second, rounded up."""
-    return -(-cycles * 1_000_000 // ips)
+    return -(-cycles * US_PER_S // ips)
 
 
 def check_pic_mhz(value: float) -> float:

@@ -56,10 +56,14 @@ def _number(*texts: str):
 NUMBERS = [
     ("the seed stride (seeds.derive_seed)", _number("7919"), {"seeds.py"}),
     ("the RS-232 rate (wire.BAUDRATE)", _number("115200"), {"protocol/wire.py"}),
-    ("the Master's 250 us timer grid (master/pic.TIMER_PERIOD_US)", _number("250"), {"master/pic.py"}),
-    # the CAN bitrate belongs to the wire (bus/); one microsecond-per-second constant, clock.US_PER_S
-    ("a million (clock.US_PER_S; the CAN wire's bitrate)", _number("1000000"),
-     {"clock.py", "bus/network.py"}),
+    # (cycles.py's tables count instruction cycles, not microseconds: a 250 there is a cost)
+    ("the Master's 250 us timer grid (master/pic.TIMER_PERIOD_US)",
+     lambda mod, node, text, parent: (_number("250")(mod, node, text, parent)
+                                      and not (mod == "cycles.py" and isinstance(parent, ast.Dict))),
+     {"master/pic.py"}),
+    # one microsecond-per-second constant, clock.US_PER_S; the PIC18F258's CAN bitrate, canframes
+    ("a million (clock.US_PER_S; canframes.CAN_BITRATE)", _number("1000000"),
+     {"clock.py", "protocol/canframes.py"}),
 ]
 
 

@@ -172,7 +172,8 @@ def plan_sweep(args: argparse.Namespace, parser: argparse.ArgumentParser
         if args.metric is None or args.x is None:
             raise SweepError("--plot needs --metric KEY and --x PARAM")
         if args.x not in params and args.x != "seed":
-            raise SweepError(f"--x {args.x}: not a --param of this sweep ({' '.join(params) or 'none'})")
+            given = " ".join(params) or "it has no --param"
+            raise SweepError(f"--x {args.x}: not a --param of this sweep ({given})")
     elif args.metric is not None or args.x is not None:
         raise SweepError("--metric and --x go with --plot FILE.png")
     recordings = None if args.recordings is None else str(args.recordings)

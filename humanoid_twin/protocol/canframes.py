@@ -34,6 +34,7 @@ from humanoid_twin.protocol.wire import (
     STATUS_ONE_FINISHED,
     STATUS_PWM,
     ErrorState,
+    from_s8,
 )
 
 if TYPE_CHECKING:  # cantools is imported lazily by load_dbc (it is slow to import)
@@ -313,7 +314,7 @@ def _length_error(packet: str, data: bytes | bytearray | memoryview) -> PayloadE
 
 
 # an int8 field (Ref, Pos, Speed of slide 20: two's complement) by its byte's value
-_INT8: tuple[int, ...] = tuple(b - 256 if b > 127 else b for b in range(256))
+_INT8: tuple[int, ...] = tuple(from_s8(b) for b in range(256))
 
 
 def _payload(data: bytes | bytearray | memoryview, packet: str) -> bytes:
