@@ -105,17 +105,6 @@ def test_the_docs_table_of_kinds_is_the_registry() -> None:
     assert [line.split("`")[1] for line in block.splitlines()[2:]] == list(faults.KINDS)
 
 
-def test_faults_import_nothing_of_the_cli() -> None:
-    import ast
-    from pathlib import Path
-
-    for mod in ("faults.py", "fault_compose.py"):
-        tree = ast.parse((Path(faults.__file__).parent / mod).read_text())
-        names = [n.module or "" for n in ast.walk(tree) if isinstance(n, ast.ImportFrom)]
-        names += [a.name for n in ast.walk(tree) if isinstance(n, ast.Import) for a in n.names]
-        assert not [n for n in names if n.startswith("humanoid_twin.cli")], mod
-
-
 # --- survivable faults: nothing false raised, the robot stands ----------------------------------
 @pytest.mark.parametrize("spec", ["can-drop:0.02", "can-corrupt:0.01", "serial-noise:0.01"])
 def test_survivable_faults_raise_nothing_and_the_robot_stands(spec) -> None:
