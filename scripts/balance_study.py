@@ -49,6 +49,7 @@ from humanoid_twin.scenarios import (
     hold,
     plan,
 )
+from humanoid_twin.summary import NO_SUPPORT_MARGIN_MM
 from humanoid_twin.sweep import Point, run_sweep
 
 FOLLOW_RATIO = 8          # the follower complies 8 times as fast as the leader balances
@@ -98,7 +99,7 @@ def run_stand(ctype: ControlType, g: Gain | None, tilt: float, seed: int = 0) ->
         margin = rig.monitor.cop_margin_min_mm
         return {
             "fell": rig.monitor.fell,
-            "cop_margin_min_mm": margin if math.isfinite(margin) else -1000.0,
+            "cop_margin_min_mm": margin if math.isfinite(margin) else NO_SUPPORT_MARGIN_MM,
             "trunk_tilt_max_deg": rig.monitor.trunk_tilt_max_deg,
         }
 

@@ -11,8 +11,8 @@ are the same for all: ``stand`` (leader/follower gains on the leg boards, docs/b
 - ``levantar_perna`` perna 1 and 2, seeds 0-9: the smallest CoP margin.
 
 Prints a markdown table on stdout. ``--jobs N`` runs N processes (default 2). The study takes
-minutes: its progress goes to stderr (a tqdm bar on a terminal, else one line per finished task,
-with the elapsed time and an estimate of the rest; ``--no-progress`` for none).
+minutes: its progress goes to stderr (a tqdm bar on a terminal, else a line every ~10 % of the
+tasks, with the elapsed time and an estimate of the rest; ``--no-progress`` for none).
 """
 
 from __future__ import annotations
@@ -25,6 +25,8 @@ from pathlib import Path
 from typing import Any
 
 from humanoid_twin.scenarios import RunOptions, run
+from humanoid_twin.summary import NO_SUPPORT_MARGIN_MM
+from humanoid_twin.sweep.engine import Progress
 
 ROOT = Path(__file__).resolve().parents[1]
 LAWS: dict[str, str] = {
@@ -73,7 +75,7 @@ def at_20(ref: str) -> dict[str, Any]:
 def one_leg(ref: str) -> float:
     margins = [_run(ref, "levantar_perna", perna=p, seed=s)["cop_margin_min_mm"]
                for p in (1, 2) for s in ONE_LEG_SEEDS]
-    return min(-1000.0 if m is None else m for m in margins)
+    return min(NO_SUPPORT_MARGIN_MM if m is None else m for m in margins)
 
 
 def _task(job: tuple[str, str]) -> tuple[str, str, Any]:
@@ -81,34 +83,6 @@ def _task(job: tuple[str, str]) -> tuple[str, str, Any]:
     ref = LAWS[name]
     fn = {"tilt": largest_tilt, "at20": at_20, "one_leg": one_leg}[kind]
     return kind, name, fn(ref)
-
-
-class _Progress:
-    """Tasks done / total on stderr: a tqdm bar on a terminal, else a plain line per task."""
-
-    def __init__(self, total: int, on: bool) -> None:
-        self.total, self.done, self.on = total, 0, on
-        self.t0 = time.perf_counter()
-        self.bar: Any = None
-        if on and sys.stderr.isatty():
-            from tqdm import tqdm
-
-            self.bar = tqdm(total=total, unit="task", desc="compare_laws", file=sys.stderr)
-
-    def update(self, what: str) -> None:
-        self.done += 1
-        if self.bar is not None:
-            self.bar.set_postfix_str(what, refresh=False)
-            self.bar.update(1)
-        elif self.on:
-            wall = time.perf_counter() - self.t0
-            eta = wall / self.done * (self.total - self.done)
-            print(f"compare_laws: {self.done}/{self.total} tasks done ({what}), {wall:.0f} s elapsed, "
-                  f"ETA {eta:.0f} s", file=sys.stderr, flush=True)
-
-    def close(self) -> None:
-        if self.bar is not None:
-            self.bar.close()
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -119,14 +93,14 @@ def main(argv: list[str] | None = None) -> int:
     t0 = time.perf_counter()
     jobs = [(kind, name) for name in LAWS for kind in ("tilt", "at20", "one_leg")]
     res: dict[tuple[str, str], Any] = {}
-    bar = _Progress(len(jobs), not args.no_progress)
+    bar = Progress(len(jobs), None if args.no_progress else sys.stderr, label="compare_laws", unit="task")
     with ProcessPoolExecutor(max(1, args.jobs)) as ex:
         futures = [ex.submit(_task, job) for job in jobs]
         try:
             for fut in as_completed(futures):
                 kind, name, value = fut.result()
                 res[(kind, name)] = value
-                bar.update(f"{kind}: {name.split(' (')[0]}")
+                bar.update({})
         finally:
             bar.close()
     print("| law (for BALANCE_CONTROL) | largest tilt held (deg) | CoP margin at 20 deg (mm) | "

@@ -233,10 +233,13 @@ def run_point(task: Task, point: Point) -> dict[str, Any]:
 @dataclass
 class Progress:
     """Runs done / total, failures, ETA on ``stream``: a tqdm bar on a terminal, else a plain
-    line every ~10 % (no carriage returns in a log)."""
+    line every ~10 % (no carriage returns in a log). ``label`` and ``unit`` name the job and
+    what it counts (a sweep's runs; ``scripts/compare_laws.py``'s tasks)."""
 
     total: int
     stream: TextIO | None = None
+    label: str = "sweep"
+    unit: str = "run"
     done: int = 0
     failed: int = 0
     _t0: float = field(default_factory=time.perf_counter)
@@ -247,7 +250,7 @@ class Progress:
         if self.stream is not None and self.total and self.stream.isatty():
             from tqdm import tqdm
 
-            self._bar = tqdm(total=self.total, unit="run", desc="sweep", file=self.stream)
+            self._bar = tqdm(total=self.total, unit=self.unit, desc=self.label, file=self.stream)
 
     def update(self, row: dict[str, Any]) -> None:
         self.done += 1
@@ -264,7 +267,7 @@ class Progress:
     def line(self) -> str:
         elapsed = time.perf_counter() - self._t0
         eta = elapsed / self.done * (self.total - self.done) if self.done else math.nan
-        return (f"sweep: {self.done}/{self.total} runs done, {self.failed} failed, "
+        return (f"{self.label}: {self.done}/{self.total} {self.unit}s done, {self.failed} failed, "
                 f"{elapsed:.0f} s elapsed, ETA {eta:.0f} s")
 
     def close(self) -> None:
