@@ -9,6 +9,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from humanoid_twin.cycles import DEFAULT_PIC_MHZ
 from humanoid_twin.faults import FaultSpec
 from humanoid_twin.protocol.wire import ControlType
 from humanoid_twin.twin import Twin
@@ -133,8 +134,10 @@ SUMMARY_KEYS: dict[str, str] = {
             "docs/supervisor.md)",
     "task_load_max": "`{\"slaves\": F, \"master\": F}`: the largest fraction of its 20 ms period "
                      "any Slave's pass of the main loop used, its interrupts included, and the largest "
-                     "fraction of its 250 us slot the Master's timer interrupt used, at the boards' clock "
-                     "(`--pic-mhz`; the PIC18 cycle table, docs/firmware.md); above 1: the work overran",
+                     "fraction of its 250 us slot the Master's timer interrupt used (the Slaves at "
+                     f"`--pic-mhz`, the Master always at {DEFAULT_PIC_MHZ:g} MHz; the PIC18 cycle table, "
+                     "docs/firmware.md); "
+                     "above 1: the work overran",
     "deadline_misses": "per board (`master`, `1`..`8`): the Slave's passes that set `deadlineError` (a pass "
                        "past its 20 ms period, or a late start injected by `--fault deadline`), the "
                        "Master's 250 us slots whose interrupt work overran",
