@@ -100,7 +100,7 @@ def test_control_type_labels_live_in_the_protocol() -> None:
     host do not retype them (``"balance"`` is also a supervisor fault's name, protocol/rs232.py,
     and ``"reaction"`` a variable of the toolbox's ``cop_acquire`` file, host/cop.py)."""
     others = {"balance": {"protocol/rs232.py", "master/supervisor.py"}, "reaction": {"host/cop.py"},
-              "none": {"bus/protocol_twin.py", "sweep/cli.py"}}
+              "none": {"bus/protocol_twin.py"}}
     stray = [w for label in LABELS
              for w in _where(lambda mod, node, text, parent, label=label: node.value == label)
              if w.split(":")[0] not in {"protocol/wire.py", *others.get(label, ())}]
