@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING
 import can
 
 from humanoid_twin.bus.confinement import ErrorConfinement
-from humanoid_twin.bus.frames import Frame, as_message, filters_accept
+from humanoid_twin.bus.frames import Frame, as_message
 from humanoid_twin.clock import US_PER_S
 
 if TYPE_CHECKING:
@@ -48,7 +48,7 @@ class ForeignPath(ErrorConfinement):
         for c in self._nodes:
             if c is ctrl:
                 continue
-            expected = socket_like and filters_accept(c._filt, msg.arbitration_id)
+            expected = socket_like and c.accepts(msg.arbitration_id)
             bus = c.bus
             while True:
                 m = bus.recv(timeout=0)
@@ -57,5 +57,5 @@ class ForeignPath(ErrorConfinement):
                 if m is None:
                     break
                 expected = False
-                c._on_frame(Frame(m.arbitration_id, m.data, ts, self.channel, True))
+                c.receive_drained(Frame(m.arbitration_id, m.data, ts, self.channel, True))
 

@@ -46,6 +46,7 @@ from humanoid_twin.bus.frames import (
     Filters,
     Frame,
     _frame_bits_cached,  # compiled core: the uncached C function _frame_bits instead (network.pxd)
+    filters_accept,
     load_frame,
     parse_filters,
 )
@@ -204,8 +205,13 @@ class CanController:
         return ERROR_STATE_CODE[self.state]
 
     # -- receive interrupt ---------------------------------------------------------------------
-    def _on_frame(self, msg: Frame) -> None:
-        """Used when draining another python-can interface (the twin bus calls on_rx directly)."""
+    def accepts(self, arbitration_id: int) -> bool:
+        """Whether this node's acceptance filters (slide 23) let a frame with this ID in."""
+        return filters_accept(self._filt, arbitration_id)
+
+    def receive_drained(self, msg: Frame) -> None:
+        """The receive interrupt for a frame drained from another python-can interface (the twin
+        bus calls it directly); nothing while bus-off."""
         if not self._off:
             self._on_rx(msg)
 

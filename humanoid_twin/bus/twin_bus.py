@@ -230,7 +230,7 @@ class TwinBus(BusABC):
         if medium is not None:
             medium.invalidate()
 
-    def _frame_callback(self) -> RxCallback:
+    def delivery_callback(self) -> RxCallback:
         """What a route calls for this member: a network node's receive interrupt takes the
         wire's :class:`~humanoid_twin.bus.frames.Frame` as it is; any other ``rx_callback`` (a
         tool's) gets a :class:`can.Message`."""
@@ -325,7 +325,7 @@ class TwinBus(BusABC):
         if not extended and all(b.rx_callback is not None for b in targets):
             skips = tuple(b.port for b in targets if b.skips(arb))
             self.port.routes[arb] = (
-                tuple(b._frame_callback() for b in targets if b.port not in skips), skips)
+                tuple(b.delivery_callback() for b in targets if b.port not in skips), skips)
             self.port.deliver(msg)
             return
         for bus in targets:

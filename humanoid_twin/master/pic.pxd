@@ -31,8 +31,8 @@ cdef class Pic:
     cdef public double slot_load_max
     cdef public long long slot_overruns
     cdef public long long slots_lost
-    cdef public bint _timer_pending
-    cdef public object _late_cb
+    cdef bint _timer_pending
+    cdef object _late_cb
 
     cpdef initPic(self)
     cpdef isr_usart_rx(self, long long byte)

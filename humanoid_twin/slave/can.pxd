@@ -62,7 +62,7 @@ cdef class SlaveCan:
     cdef public bint bus_off_seen
     cdef public object on_stop
     cdef public long long isr_cycles
-    cdef public long long _skipped_seen
+    cdef long long _skipped_seen
 
     @cython.locals(now=cython.longlong, due=cython.longlong)
     cpdef lowISR(self, Frame msg)
