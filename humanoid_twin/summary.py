@@ -136,8 +136,7 @@ SUMMARY_KEYS: dict[str, str] = {
                      "any Slave's pass of the main loop used, its interrupts included, and the largest "
                      "fraction of its 250 us slot the Master's timer interrupt used (the Slaves at "
                      f"`--pic-mhz`, the Master always at {DEFAULT_PIC_MHZ:g} MHz; the PIC18 cycle table, "
-                     "docs/firmware.md); "
-                     "above 1: the work overran",
+                     "docs/firmware.md); above 1: the work overran",
     "deadline_misses": "per board (`master`, `1`..`8`): the Slave's passes that set `deadlineError` (a pass "
                        "past its 20 ms period, or a late start injected by `--fault deadline`), the "
                        "Master's 250 us slots whose interrupt work overran",
