@@ -114,6 +114,7 @@ def test_the_tap_is_removed_on_close(tmp_path: Path) -> None:
         assert len((tmp_path / "a.log").read_text().splitlines()) == n == 4 + 2
 
 
+@pytest.mark.slow
 def test_a_serve_session_in_real_time_replays(tmp_path: Path) -> None:
     """serve's own loop (TcpBridge, RealTimePacer at 4x, twin.run_realtime_step), two clients over
     TCP with pyserial's socket:// URL, the log attached as serve would: the lockstep replay

@@ -21,6 +21,8 @@ import pytest
 from humanoid_twin.bus.serial_log import TAP_TO_DEVICE, TAP_TO_HOST, read_log
 from humanoid_twin.recording.readback import read_rrd_rows, rerun_executable, verify_rrd
 
+pytestmark = pytest.mark.slow       # subprocess-heavy: skipped by `pytest -m "not slow"` (README)
+
 CLI = [sys.executable, "-m", "humanoid_twin.cli.main"]
 REPLAY = [sys.executable, "-m", "humanoid_twin.bus.serial_log", "replay"]
 

@@ -14,6 +14,8 @@ from humanoid_twin.cli.main import main
 from humanoid_twin.recording.readback import read_rrd_rows
 from humanoid_twin.sweep import read_table
 
+pytestmark = pytest.mark.slow       # subprocess-heavy: skipped by `pytest -m "not slow"` (README)
+
 REPO = Path(__file__).resolve().parents[1]
 EXAMPLE = REPO / "examples" / "push_recovery.py"
 
