@@ -67,7 +67,13 @@ class Boom(Scenario):
         raise ZeroDivisionError("the experiment divided by zero")
 
 
+class SlowBoom(Scenario):
+    def motion_s(self, plan):
+        raise KeyError("no such motion")
+
+
 boom = Boom("boom", REGISTRY["stand"].factory, moves=False)
+slow_boom = SlowBoom("slow_boom", REGISTRY["stand"].factory, moves=False)
 not_a_scenario = 42
 '''
 
@@ -100,6 +106,18 @@ def test_a_scenario_that_fails_in_its_own_code_is_one_line_exit_1_nothing_replac
     err = capsys.readouterr().err
     assert code == 1 and len(err.strip().splitlines()) == 1, err
     assert f"scenario {tmp_path}/user.py:boom raised ZeroDivisionError: the experiment divided by zero" in err
+    assert log.read_text() == "an earlier log\n"
+
+
+def test_a_scenario_whose_motion_s_raises_is_one_line_exit_1_nothing_replaced(capsys, tmp_path):
+    (tmp_path / "user.py").write_text(BROKEN)
+    log = tmp_path / "x.asc"
+    log.write_text("an earlier log\n")
+    with pytest.raises(SystemExit) as exc:
+        main(["run", f"{tmp_path}/user.py:slow_boom", "--no-record", "--can-log", str(log), "--no-progress"])
+    err = capsys.readouterr().err
+    assert exc.value.code == 1 and len(err.strip().splitlines()) == 1, err
+    assert f"scenario {tmp_path}/user.py:slow_boom raised KeyError: " in err and "in its motion_s" in err, err
     assert log.read_text() == "an earlier log\n"
 
 

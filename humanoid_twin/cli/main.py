@@ -346,14 +346,20 @@ def check_run_inputs(args: argparse.Namespace, load: bool = True) -> dict[str, A
         raise _usage_error(f"--duration {args.duration:g} is shorter than the boot (the Slaves calibrate for "
                            f"{BOOT_MIN_S:g} s; the boot takes ~2.65 simulated seconds): give at least that")
     spec = load_scenario_arg(args.scenario)
+    where = "plan"
     try:   # the planners' own limits (T fits one byte of 20 ms ticks, each joint's range ...)
-        spec.plan(args.T, args.motion, args.perna)
+        plan = spec.plan(args.T, args.motion, args.perna)
+        where = "motion_s"      # what sizes the outputs' disk space (expected_run_s), before a run
+        spec.motion_s(plan)
     except ValueError as exc:
+        if where != "plan" and not is_builtin(spec):
+            sys.stderr.write(f"humanoid-twin: scenario {args.scenario} raised {describe(exc)} in its {where}\n")
+            raise SystemExit(1) from None
         raise _usage_error(f"{args.scenario}: {exc}") from None
     except BaseException as exc:
         if is_builtin(spec) or not user_fault(exc):
             raise
-        sys.stderr.write(f"humanoid-twin: scenario {args.scenario} raised {describe(exc)} in its plan\n")
+        sys.stderr.write(f"humanoid-twin: scenario {args.scenario} raised {describe(exc)} in its {where}\n")
         raise SystemExit(1) from None
     return check_rig_inputs(args, load=load)
 
