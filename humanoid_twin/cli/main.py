@@ -506,6 +506,7 @@ def cmd_serve(args: argparse.Namespace) -> int:
     from humanoid_twin.recording.readback import RrdReadError
     from humanoid_twin.recording.viewer import ViewerError, live_url, spawn_live_viewer
     from humanoid_twin.serve import ServeError, ServeOptions, serve
+    from humanoid_twin.slave.laws import LawError
 
     controllers = check_rig_inputs(args)        # the same checks as run's (cli/options.py)
     if args.tcp is not None:
@@ -542,7 +543,7 @@ def cmd_serve(args: argparse.Namespace) -> int:
                             speed=args.speed)
         try:
             code = serve(opts, should_stop=lambda: stop["signal"] is not None)
-        except ServeError as exc:
+        except (ServeError, LawError) as exc:     # LawError: a law that cannot be made for every board
             raise _usage_error(str(exc)) from None
         except (OSError, RrdReadError) as exc:
             sys.stderr.write(f"humanoid-twin: error: cannot write the outputs: "
