@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import sys
 from collections.abc import Iterator
 from dataclasses import dataclass
@@ -24,6 +25,7 @@ from pathlib import Path
 from typing import IO, Any
 
 from humanoid_twin.bus.serial_link import TAP_FLUSH, TAP_TO_DEVICE, TAP_TO_HOST, TAP_UNPLUG, SerialLink
+from humanoid_twin.protocol.wire import BAUDRATE
 
 MAGIC = "# humanoid-twin serial log 1"
 _EVENTS = (TAP_TO_DEVICE, TAP_TO_HOST, TAP_FLUSH, TAP_UNPLUG)
@@ -44,6 +46,18 @@ class Record:
         if self.event in (TAP_TO_DEVICE, TAP_TO_HOST):
             return f"{self.t_us} {self.event} {self.end_us} {self.data.hex(' ')}"
         return f"{self.t_us} {self.event} {self.dropped}"
+
+
+def max_bytes_per_s(link_bits_per_byte: int = 11, baudrate: int = BAUDRATE) -> int:
+    """The most a serial log grows per simulated second (bytes): the line full both ways in the
+    protocol's 6-byte frames (one write each; 11 bits a byte, seed 002 slide 7), each the
+    longest line of this format (11-digit times, a simulated day) and its newline. At 8E1,
+    115200 baud: 2 x 1745.5 lines of 52 bytes."""
+    from humanoid_twin.protocol.rs232 import FRAME_LEN
+
+    longest = Record(10**11 - 1, TAP_TO_DEVICE, data=bytes(FRAME_LEN), end_us=10**11 - 1).line()
+    lines_per_s = 2 * baudrate / (link_bits_per_byte * FRAME_LEN)
+    return math.ceil(lines_per_s * (len(longest) + 1))
 
 
 class SerialLogError(ValueError):

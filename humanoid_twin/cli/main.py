@@ -211,9 +211,6 @@ CAN_LOG_BYTES_PER_FRAME = {".asc": 78, ".blf": 7, ".csv": 44, ".log": 52, ".trc"
                            ".db": 41}
 CAN_LOG_BYTES_PER_FRAME_OTHER = 150     # a format not measured (.mf4 ...): the largest
 CAN_LOG_BYTES_PER_FRAME_GZ = 8          # any format + .gz (measured .asc.gz: 3.2)
-# a serial log: the line full both ways (10 473 bytes/s each) in the protocol's 6-byte frames, a
-# line of at most 51 characters each (11-digit times: a day): 178 000 (measured flexao: 18 400)
-SERIAL_LOG_BYTES_PER_S = 180_000
 
 
 def _check_writable(path: Path, what: str) -> None:
@@ -252,7 +249,9 @@ def output_bytes(kind: str, path: Path, expected_s: float) -> int:
 
         return round(expected_s * RRD_BYTES_PER_S * (2 if compact_for(expected_s) else 1))
     if kind == "serial_log":
-        return round(expected_s * SERIAL_LOG_BYTES_PER_S)
+        from humanoid_twin.bus.serial_log import max_bytes_per_s
+
+        return round(expected_s * max_bytes_per_s())     # measured flexao: 18 400 bytes/s
     suffix = path.suffix.lower()
     if suffix == ".gz":
         per_frame = CAN_LOG_BYTES_PER_FRAME_GZ
@@ -353,7 +352,8 @@ def check_run_inputs(args: argparse.Namespace, load: bool = True) -> dict[str, A
         spec.motion_s(plan)
     except ValueError as exc:
         if where != "plan" and not is_builtin(spec):
-            sys.stderr.write(f"humanoid-twin: scenario {args.scenario} raised {describe(exc)} in its {where}\n")
+            sys.stderr.write(f"humanoid-twin: scenario {args.scenario} raised {describe(exc)} "
+                             f"in its {where}\n")
             raise SystemExit(1) from None
         raise _usage_error(f"{args.scenario}: {exc}") from None
     except BaseException as exc:

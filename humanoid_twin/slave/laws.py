@@ -384,7 +384,7 @@ def _check_cost(law: Any, name: str) -> None:
     from humanoid_twin.cycles import law_cycles
 
     try:
-        law_cycles(law, ControlType.BALANCE_CONTROL)   # the type only picks the cost of a law that declares none
+        law_cycles(law, ControlType.BALANCE_CONTROL)   # the type: the cost of a law declaring none
     except BaseException as exc:       # a user's cycles: not a cost, or it raised
         if not user_fault(exc):
             raise
