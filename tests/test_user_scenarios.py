@@ -75,6 +75,7 @@ class SlowBoom(Scenario):
 boom = Boom("boom", REGISTRY["stand"].factory, moves=False)
 slow_boom = SlowBoom("slow_boom", REGISTRY["stand"].factory, moves=False)
 not_a_scenario = 42
+alias = REGISTRY["stand"]            # the reference says alias, the scenario's name is stand
 '''
 
 
@@ -119,6 +120,18 @@ def test_a_scenario_whose_motion_s_raises_is_one_line_exit_1_nothing_replaced(ca
     assert exc.value.code == 1 and len(err.strip().splitlines()) == 1, err
     assert f"scenario {tmp_path}/user.py:slow_boom raised KeyError: " in err and "in its motion_s" in err, err
     assert log.read_text() == "an earlier log\n"
+
+
+def test_run_and_sweep_name_recordings_after_the_scenario_s_own_name(capsys, tmp_path, monkeypatch):
+    """One rule (docs/scenarios.md): the object's ``name``, not the reference's NAME."""
+    from humanoid_twin.sweep.engine import Point, RunCli
+
+    (tmp_path / "user.py").write_text(BROKEN)
+    monkeypatch.chdir(tmp_path)
+    code = main(["run", "user.py:alias", "--duration", "3", "--no-progress"])
+    assert code == 0 and (tmp_path / "stand.rrd").is_file(), capsys.readouterr().err
+    argv = RunCli(f"{tmp_path}/user.py:alias", recordings="recs").argv(Point(0, (("tilt", "5"),), 1))
+    assert f"--out={Path('recs') / 'stand_tilt=5_seed=1.rrd'}" in argv, argv
 
 
 def test_an_entry_point_scenario_runs_by_its_name(capsys, tmp_path, monkeypatch):
