@@ -308,6 +308,20 @@ def is_reference(ref: str) -> bool:
     return ":" in ref
 
 
+def split_reference(ref: str) -> tuple[str, str]:
+    """``FILE.py:NAME`` / ``MODULE:NAME`` -> ``(FILE.py or MODULE, NAME)`` (split at the last
+    colon: a file's path may hold one); ``("", ref)`` for a name."""
+    where, _, attr = ref.rpartition(":")
+    return where, attr
+
+
+def recording_name(ref: str | Scenario, label: str = "") -> str:
+    """The default file name of a run's recording: the scenario's ``name`` (a user's object's
+    own, whatever the reference calls it), then ``_LABEL`` (a sweep's grid point), ``.rrd``."""
+    name = load_scenario(ref).name
+    return f"{name}_{label}.rrd" if label else f"{name}.rrd"
+
+
 def entry_point_names() -> list[str]:
     """The scenarios installed packages declare in the group :data:`ENTRY_POINT_GROUP`."""
     from importlib.metadata import entry_points
@@ -329,7 +343,7 @@ def load_scenario(ref: str | Scenario) -> Scenario:
     if ref in _loaded:
         return _loaded[ref]
     if is_reference(ref):
-        where, _, attr = ref.rpartition(":")
+        where, attr = split_reference(ref)
         if not where or not attr:
             raise ScenarioLoadError(f"scenario {ref!r}: expected FILE.py:NAME or MODULE:NAME")
         obj: Any = _import(ref, where)

@@ -37,6 +37,15 @@ class Floaty(ControlLaw):
         return [0.5, 0, 0]
 
 
+class Pricey(ControlLaw):
+    cycles = "a lot"
+
+
+class Sulky(ControlLaw):
+    def cycles(self):
+        raise RuntimeError("ask me later")
+
+
 class TooFar(ControlLaw):
     output = POSITION
 
@@ -106,6 +115,18 @@ def test_bad_law_options_are_usage_errors_before_anything_is_written(user_pkg, c
         err = capsys.readouterr().err
         assert len(err.strip().splitlines()) == 1 and msg in err, err
         assert not out.exists()
+
+
+@pytest.mark.parametrize("law, msg", [("Pricey", "cycles must be a non-negative int"),
+                                      ("Sulky", "RuntimeError: ask me later")])
+@pytest.mark.parametrize("cmd", [["run", "stand", "--no-record"], ["serve", "--tcp", "0"]])
+def test_a_law_with_a_bad_cost_is_a_usage_error_in_run_and_serve(user_pkg, capsys, tmp_path, cmd, law, msg):
+    out = tmp_path / "x.asc"
+    with pytest.raises(SystemExit) as exc:
+        main([*cmd, "--can-log", str(out), "--law", f"balance={user_pkg}:{law}"])
+    err = capsys.readouterr().err
+    assert exc.value.code == 2 and len(err.strip().splitlines()) == 1 and msg in err, err
+    assert f"{user_pkg}:{law}" in err and not out.exists()
 
 
 REPO = Path(__file__).resolve().parents[1]

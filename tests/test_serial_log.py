@@ -5,6 +5,7 @@ for microsecond."""
 
 from __future__ import annotations
 
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -37,7 +38,7 @@ def logged(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, dict[str, in
     H.write(TEST_MSG)
     twin.run_for(0.0003)             # the request is on its way, its answer not complete yet
     twin.link.unplug()                     # as a serve session does: the cable, then the receiver
-    twin.master.usart.usartResetRxBuff()
+    twin.master.reset_receiver()
     H.write(TEST_MSG)
     answer = H.read(6)
     killcom(H)
@@ -129,7 +130,7 @@ def test_a_serve_session_in_real_time_replays(tmp_path: Path) -> None:
     path = tmp_path / "serve.serial.log"
     twin = Twin(seed=1)
     log = SerialLog.attach(twin, path)
-    bridge = TcpBridge(twin.link, port=0, log=lambda s: None, on_session=twin.master.usart.usartResetRxBuff,
+    bridge = TcpBridge(twin.link, port=0, log=lambda s: None, on_session=twin.master.reset_receiver,
                        quiet_us=FRAME_GAP_US + PROCESS_US + 1_000)
     errors: list[BaseException] = []
 
@@ -173,3 +174,11 @@ def test_a_serve_session_in_real_time_replays(tmp_path: Path) -> None:
     assert res.difference is None, res.difference
     assert res.twin_bytes == sum(len(r.data) for r in records if r.event == "twin>host") > 400
 
+
+
+def test_a_header_that_cannot_be_written_leaves_no_open_file(tmp_path):
+    twin = Twin(seed=1)
+    fds = len(os.listdir("/proc/self/fd"))
+    with pytest.raises(TypeError) as exc:
+        SerialLog(tmp_path / "x.serial", twin.link, meta={"seed": object()})   # not JSON
+    assert exc.value is not None and len(os.listdir("/proc/self/fd")) == fds

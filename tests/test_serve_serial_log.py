@@ -19,6 +19,7 @@ import can
 import pytest
 
 from humanoid_twin.bus.serial_log import TAP_TO_DEVICE, TAP_TO_HOST, read_log
+from humanoid_twin.protocol.rs232 import FrameError, decode_response
 from humanoid_twin.recording.readback import read_rrd_rows, rerun_executable, verify_rrd
 
 pytestmark = pytest.mark.slow       # subprocess-heavy: skipped by `pytest -m "not slow"` (README)
@@ -95,14 +96,24 @@ def test_a_serve_session_leaves_a_recording_a_can_log_and_a_serial_log_that_repl
 def test_a_run_with_faults_laws_and_tilt_replays_into_the_rig_its_header_records(tmp_path):
     log = tmp_path / "flexao.serial"
     r = subprocess.run([*CLI, "run", "flexao", "--duration", "6", "--tilt", "4", "--seed", "3",
-                        "--fault", "push:30@3", "--fault", "serial-noise:0.01@4", "--host-link", "2",
+                        "--fault", "push:30@3", "--fault", "serial-noise:0.01@3", "--host-link", "2",
                         "--law", "balance=humanoid_twin.slave.laws:JacobianLaw", "--serial-log", str(log),
                         "--no-record", "--no-progress", "--json"],
                        capture_output=True, text=True, timeout=120, cwd=tmp_path)
     assert r.returncode in (0, 3), r.stderr
     assert json.loads(r.stdout)["serial_log"] == str(log)
-    meta, _ = read_log(log)
+    meta, records = read_log(log)
     assert meta["tilt"] == 4 and meta["tilt_from_s"] > 2.5 and meta["supervisor"]["host_link_ms"] == 2000
+    # the noise flips bits while the host still talks (from 3 s): the answers the host read carry
+    # broken BCCs, and the replay's twin, fed the host's bytes as written, flips the same ones
+    broken = 0
+    for rec in records:
+        if rec.event == TAP_TO_HOST:
+            try:
+                decode_response(rec.data)
+            except FrameError:
+                broken += 1
+    assert broken > 0
     assert meta["laws"] == [[3, "humanoid_twin.slave.laws:JacobianLaw"]]
     rp = _replay(log)
     assert rp.returncode == 0, rp.stderr

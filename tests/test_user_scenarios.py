@@ -69,8 +69,15 @@ class Boom(Scenario):
         raise ZeroDivisionError("the experiment divided by zero")
 
 
+class SlowBoom(Scenario):
+    def motion_s(self, plan):
+        raise KeyError("no such motion")
+
+
 boom = Boom("boom", REGISTRY["stand"].factory, moves=False)
+slow_boom = SlowBoom("slow_boom", REGISTRY["stand"].factory, moves=False)
 not_a_scenario = 42
+alias = REGISTRY["stand"]            # the reference says alias, the scenario's name is stand
 '''
 
 
@@ -103,6 +110,30 @@ def test_a_scenario_that_fails_in_its_own_code_is_one_line_exit_1_nothing_replac
     assert code == 1 and len(err.strip().splitlines()) == 1, err
     assert f"scenario {tmp_path}/user.py:boom raised ZeroDivisionError: the experiment divided by zero" in err
     assert log.read_text() == "an earlier log\n"
+
+
+def test_a_scenario_whose_motion_s_raises_is_one_line_exit_1_nothing_replaced(capsys, tmp_path):
+    (tmp_path / "user.py").write_text(BROKEN)
+    log = tmp_path / "x.asc"
+    log.write_text("an earlier log\n")
+    with pytest.raises(SystemExit) as exc:
+        main(["run", f"{tmp_path}/user.py:slow_boom", "--no-record", "--can-log", str(log), "--no-progress"])
+    err = capsys.readouterr().err
+    assert exc.value.code == 1 and len(err.strip().splitlines()) == 1, err
+    assert f"scenario {tmp_path}/user.py:slow_boom raised KeyError: " in err and "in its motion_s" in err, err
+    assert log.read_text() == "an earlier log\n"
+
+
+def test_run_and_sweep_name_recordings_after_the_scenario_s_own_name(capsys, tmp_path, monkeypatch):
+    """One rule (docs/scenarios.md): the object's ``name``, not the reference's NAME."""
+    from humanoid_twin.sweep.engine import Point, RunCli
+
+    (tmp_path / "user.py").write_text(BROKEN)
+    monkeypatch.chdir(tmp_path)
+    code = main(["run", "user.py:alias", "--duration", "3", "--no-progress"])
+    assert code == 0 and (tmp_path / "stand.rrd").is_file(), capsys.readouterr().err
+    argv = RunCli(f"{tmp_path}/user.py:alias", recordings="recs").argv(Point(0, (("tilt", "5"),), 1))
+    assert f"--out={Path('recs') / 'stand_tilt=5_seed=1.rrd'}" in argv, argv
 
 
 def test_an_entry_point_scenario_runs_by_its_name(capsys, tmp_path, monkeypatch):

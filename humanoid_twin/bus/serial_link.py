@@ -148,7 +148,10 @@ class SerialLink:
         times = self._push(self._to_host, data)
         self.bytes_to_host += len(data)
         if self._taps and times:
-            self._tap(TAP_TO_HOST, self._to_host, times)
+            q = self._to_host.queue
+            n = len(times)
+            wire = bytes([q[i][1] for i in range(len(q) - n, len(q))])   # this write: the queue's tail
+            self._tap(TAP_TO_HOST, wire, times[n - 1])
 
     # -- host (PC) side ------------------------------------------------------------------------
     def host_write(self, data: bytes) -> None:
@@ -157,7 +160,7 @@ class SerialLink:
         times = self._push(self._to_dev, data)
         self.bytes_to_device += len(data)
         if self._taps and times:
-            self._tap(TAP_TO_DEVICE, self._to_dev, times)
+            self._tap(TAP_TO_DEVICE, data, times[len(times) - 1])   # as written: before the noise
         deliver = self._deliver_to_device
         for t in times:
             self.clock.schedule(t, deliver)
@@ -246,9 +249,10 @@ class SerialLink:
         """Call ``cb(event, t_us, data, n)`` on every event of the cable, at ``clock.now_us``:
 
         - ``TAP_TO_DEVICE`` / ``TAP_TO_HOST``: ``data`` handed to the host's / the Master's
-          transmitter at ``t_us`` (as the wire carries them: after an injected bit flip), ``n`` the
-          stop-bit time of its last byte (each byte's own stop bit follows from the burst rule
-          above);
+          transmitter at ``t_us``, ``n`` the stop-bit time of its last byte (each byte's own stop
+          bit follows from the burst rule above). Host>twin bytes are the ones the host wrote
+          (before an injected bit flip: fed to a twin with the same noise, they flip alike);
+          twin>host bytes are the ones the wire carries (after the flip: what the host reads);
         - ``TAP_FLUSH``: the host discarded ``n`` bytes not yet started (``host_reset_output``);
         - ``TAP_UNPLUG``: the cable was unplugged, ``n`` bytes lost in both directions.
         """
@@ -260,12 +264,9 @@ class SerialLink:
         """Undo :meth:`add_tap`."""
         self._taps.remove(cb)
 
-    def _tap(self, event: str, d: _Direction, times: list) -> None:
-        q = d.queue
-        n = len(times)
-        wire = bytes([q[i][1] for i in range(len(q) - n, len(q))])   # this write: the queue's tail
+    def _tap(self, event: str, data: bytes, end_us: int) -> None:
         for cb in self._taps:
-            cb(event, self.clock.now_us, wire, times[n - 1])
+            cb(event, self.clock.now_us, data, end_us)
 
     # -- faults --------------------------------------------------------------------------------
     def set_noise(self, prob: float, seed: int = 0) -> None:

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import sys
 from collections.abc import Iterator
 from dataclasses import dataclass
@@ -24,6 +25,7 @@ from pathlib import Path
 from typing import IO, Any
 
 from humanoid_twin.bus.serial_link import TAP_FLUSH, TAP_TO_DEVICE, TAP_TO_HOST, TAP_UNPLUG, SerialLink
+from humanoid_twin.protocol.wire import BAUDRATE
 
 MAGIC = "# humanoid-twin serial log 1"
 _EVENTS = (TAP_TO_DEVICE, TAP_TO_HOST, TAP_FLUSH, TAP_UNPLUG)
@@ -46,6 +48,18 @@ class Record:
         return f"{self.t_us} {self.event} {self.dropped}"
 
 
+def max_bytes_per_s(link_bits_per_byte: int = 11, baudrate: int = BAUDRATE) -> int:
+    """The most a serial log grows per simulated second (bytes): the line full both ways in the
+    protocol's 6-byte frames (one write each; 11 bits a byte, seed 002 slide 7), each the
+    longest line of this format (11-digit times, a simulated day) and its newline. At 8E1,
+    115200 baud: 2 x 1745.5 lines of 52 bytes."""
+    from humanoid_twin.protocol.rs232 import FRAME_LEN
+
+    longest = Record(10**11 - 1, TAP_TO_DEVICE, data=bytes(FRAME_LEN), end_us=10**11 - 1).line()
+    lines_per_s = 2 * baudrate / (link_bits_per_byte * FRAME_LEN)
+    return math.ceil(lines_per_s * (len(longest) + 1))
+
+
 class SerialLogError(ValueError):
     """A file that is not a serial log (or a line that breaks its format)."""
 
@@ -63,17 +77,26 @@ class SerialLog:
         self.path = Path(path)
         self.link = link
         self.records = 0
-        self._f: IO[str] | None = open(self.path, "w", encoding="ascii", buffering=1)  # noqa: SIM115
+        f = open(self.path, "w", encoding="ascii", buffering=1)  # noqa: SIM115
         settings = f"{link.baudrate} {link.bytesize}{link.parity}{link.stopbits}"
-        self._f.write(f"{MAGIC}\n# line {settings}; times in virtual microseconds since the twin started\n"
-                      f"# meta {json.dumps(meta or {}, sort_keys=True)}\n"
-                      "# t_us event end_us bytes(hex) | t_us flush|unplug bytes_dropped\n")
+        try:
+            f.write(f"{MAGIC}\n# line {settings}; times in virtual microseconds since the twin started\n"
+                    f"# meta {json.dumps(meta or {}, sort_keys=True)}\n"
+                    "# t_us event end_us bytes(hex) | t_us flush|unplug bytes_dropped\n")
+        except BaseException:
+            f.close()
+            raise
+        self._f: IO[str] | None = f
         link.add_tap(self._on_event)
 
     @classmethod
     def attach(cls, twin: Any, path: str | Path) -> SerialLog:
-        """Log the RS-232 cable of ``twin`` (a :class:`~humanoid_twin.twin.Twin`) into ``path``."""
-        return cls(path, twin.link, meta={"seed": twin.seed})
+        """Log the RS-232 cable of ``twin`` (a :class:`~humanoid_twin.twin.Twin`) into ``path``; the
+        header records a default rig of the twin's seed (a twin with faults or laws: log it
+        through :class:`~humanoid_twin.rig.Rig`, whose options the header then records)."""
+        from humanoid_twin.rig import RigOptions
+
+        return cls(path, twin.link, meta=RigOptions(seed=twin.seed, monitor=False).replay_meta())
 
     def note(self, meta: dict[str, Any]) -> None:
         """Add ``meta`` to the header's meta, from now (e.g. when the platform's tilt starts)."""
@@ -172,8 +195,9 @@ class ReplayResult:
 def replay(path: str | Path, seed: int | None = None) -> ReplayResult:
     """Feed the host->twin bytes of the log at their instants (the flushes and unplugs too) into a
     fresh twin and compare its twin->host writes with the log's. The twin is a
-    :class:`~humanoid_twin.rig.Rig` of the options the log's meta records (seed, CAN wire,
-    faults, supervisor thresholds, laws, tilt and its start; ``seed`` given: that one instead).
+    :class:`~humanoid_twin.rig.Rig` of the options the log's meta records (those of
+    :meth:`~humanoid_twin.rig.RigOptions.replay_meta`, and the tilt's start; ``seed`` given: that
+    one instead).
     An unplug is a ``serve`` session's start or end, which also resets the Master's receiver
     (``bus/bridges.py``): the replay does both."""
     import dataclasses
@@ -214,7 +238,7 @@ def replay(path: str | Path, seed: int | None = None) -> ReplayResult:
                 twin.link.host_reset_output()
             else:                # a serve client came or left: the cable and the Master's receiver
                 twin.link.unplug()
-                twin.master.usart.usartResetRxBuff()
+                twin.master.reset_receiver()
         end = max((max(r.t_us, r.end_us) for r in records), default=0)
         twin.advance_to(end)
     finally:

@@ -37,7 +37,6 @@ from humanoid_twin.cli.argtypes import (
     wall_seconds,
 )
 from humanoid_twin.cli.options import (
-    EXIT_USAGE,
     add_host_controller_options,
     add_rig_options,
     check_rig_inputs,
@@ -55,8 +54,7 @@ class _Parser(argparse.ArgumentParser):
     """argparse, but errors are one line (``humanoid-twin: error: ...``) and exit 2."""
 
     def error(self, message: str) -> None:  # type: ignore[override]
-        sys.stderr.write(f"humanoid-twin: error: {message}\n")
-        raise SystemExit(EXIT_USAGE)
+        raise _usage_error(message)
 
 
 EXAMPLES = """\
@@ -211,9 +209,6 @@ CAN_LOG_BYTES_PER_FRAME = {".asc": 78, ".blf": 7, ".csv": 44, ".log": 52, ".trc"
                            ".db": 41}
 CAN_LOG_BYTES_PER_FRAME_OTHER = 150     # a format not measured (.mf4 ...): the largest
 CAN_LOG_BYTES_PER_FRAME_GZ = 8          # any format + .gz (measured .asc.gz: 3.2)
-# a serial log: the line full both ways (10 473 bytes/s each) in the protocol's 6-byte frames, a
-# line of at most 51 characters each (11-digit times: a day): 178 000 (measured flexao: 18 400)
-SERIAL_LOG_BYTES_PER_S = 180_000
 
 
 def _check_writable(path: Path, what: str) -> None:
@@ -252,7 +247,9 @@ def output_bytes(kind: str, path: Path, expected_s: float) -> int:
 
         return round(expected_s * RRD_BYTES_PER_S * (2 if compact_for(expected_s) else 1))
     if kind == "serial_log":
-        return round(expected_s * SERIAL_LOG_BYTES_PER_S)
+        from humanoid_twin.bus.serial_log import max_bytes_per_s
+
+        return round(expected_s * max_bytes_per_s())     # measured flexao: 18 400 bytes/s
     suffix = path.suffix.lower()
     if suffix == ".gz":
         per_frame = CAN_LOG_BYTES_PER_FRAME_GZ
@@ -289,6 +286,19 @@ class _Outputs:
                     f"{' and '.join(whats)}: a {expected_s:g} s run writes about "
                     f"{(total + MIN_FREE_BYTES) / 2**20:.0f} MB there, only {free / 2**20:.0f} MB free "
                     "(docs/scenarios.md, \"Disk space\")")
+
+    def open_all(self, out: Path | None, args: argparse.Namespace, expected_s: float) -> dict[str, Any]:
+        """The outputs of a ``run`` or ``serve`` (the recording ``out``, ``args``' ``--can-log`` and
+        ``--serial-log``): their disks' space checked (:meth:`check_space`), each created under its
+        temporary name. Returns the :class:`~humanoid_twin.rig.RigOptions` output fields: the
+        temporary names, and the CAN log's final name (``can_log_name``, its header)."""
+        finals = {"out": out, "can_log": args.can_log, "serial_log": args.serial_log}
+        wanted = {k: (p, what) for (k, p), what in zip(finals.items(), ("--out", "--can-log", "--serial-log"),
+                                                      strict=True) if p is not None}
+        self.check_space(wanted, expected_s)
+        files: dict[str, Any] = {k: self.add(k, *wanted[k]) if k in wanted else None for k in finals}
+        files["can_log_name"] = None if args.can_log is None else args.can_log.name
+        return files
 
     def add(self, key: str, path: Path, what: str) -> Path:
         path = path.expanduser()
@@ -346,14 +356,21 @@ def check_run_inputs(args: argparse.Namespace, load: bool = True) -> dict[str, A
         raise _usage_error(f"--duration {args.duration:g} is shorter than the boot (the Slaves calibrate for "
                            f"{BOOT_MIN_S:g} s; the boot takes ~2.65 simulated seconds): give at least that")
     spec = load_scenario_arg(args.scenario)
+    where = "plan"
     try:   # the planners' own limits (T fits one byte of 20 ms ticks, each joint's range ...)
-        spec.plan(args.T, args.motion, args.perna)
+        plan = spec.plan(args.T, args.motion, args.perna)
+        where = "motion_s"      # what sizes the outputs' disk space (expected_run_s), before a run
+        spec.motion_s(plan)
     except ValueError as exc:
+        if where != "plan" and not is_builtin(spec):
+            sys.stderr.write(f"humanoid-twin: scenario {args.scenario} raised {describe(exc)} "
+                             f"in its {where}\n")
+            raise SystemExit(1) from None
         raise _usage_error(f"{args.scenario}: {exc}") from None
     except BaseException as exc:
         if is_builtin(spec) or not user_fault(exc):
             raise
-        sys.stderr.write(f"humanoid-twin: scenario {args.scenario} raised {describe(exc)} in its plan\n")
+        sys.stderr.write(f"humanoid-twin: scenario {args.scenario} raised {describe(exc)} in its {where}\n")
         raise SystemExit(1) from None
     return check_rig_inputs(args, load=load)
 
@@ -368,24 +385,18 @@ def cmd_run(args: argparse.Namespace) -> int:
             check_display()
         except LiveViewerError as exc:
             raise _usage_error(str(exc)) from None
-    from humanoid_twin.scenarios import expected_run_s, load_scenario
+    from humanoid_twin.scenarios import expected_run_s, recording_name
 
-    out = None if args.no_record else (args.out or Path(f"{load_scenario(args.scenario).name}.rrd"))
-    if out is not None and out.suffix != ".rrd":
-        raise _usage_error(f"--out {out}: a rerun recording must end in .rrd")
-    wanted = {k: (p, w) for k, p, w in (("out", out, "--out"), ("can_log", args.can_log, "--can-log"),
-                                        ("serial_log", args.serial_log, "--serial-log")) if p is not None}
+    # --out was checked with the other inputs; the default name ends in .rrd
+    out = None if args.no_record else (args.out or Path(recording_name(args.scenario)))
     outputs = _Outputs()
     from humanoid_twin import signals
 
     signals.on_hard_exit(outputs.discard)     # --wall-timeout against code that swallows the stop
-    outputs.check_space(wanted, expected_run_s(args.scenario, args.duration, args.T, args.motion,
-                                               args.perna, args.tilt))
     try:
-        out_tmp = outputs.add("out", out, "--out") if out is not None else None
-        can_tmp = outputs.add("can_log", args.can_log, "--can-log") if args.can_log is not None else None
-        ser_tmp = outputs.add("serial_log", args.serial_log, "--serial-log") if args.serial_log else None
-        return _run(args, run_options(args, controllers, out_tmp, can_tmp, ser_tmp), outputs)
+        files = outputs.open_all(out, args, expected_run_s(args.scenario, args.duration, args.T,
+                                                           args.motion, args.perna, args.tilt))
+        return _run(args, run_options(args, controllers, files), outputs)
     finally:
         outputs.discard()       # whatever was not committed
 
@@ -500,6 +511,7 @@ def cmd_serve(args: argparse.Namespace) -> int:
     from humanoid_twin.recording.readback import RrdReadError
     from humanoid_twin.recording.viewer import ViewerError, live_url, spawn_live_viewer
     from humanoid_twin.serve import ServeError, ServeOptions, serve
+    from humanoid_twin.slave.laws import LawError
 
     controllers = check_rig_inputs(args)        # the same checks as run's (cli/options.py)
     if args.tcp is not None:
@@ -516,27 +528,20 @@ def cmd_serve(args: argparse.Namespace) -> int:
 
     signal.signal(signal.SIGTERM, _stop)
     signal.signal(signal.SIGINT, _stop)
-    wanted = {k: (p, w) for k, p, w in (("out", args.out, "--out"), ("can_log", args.can_log, "--can-log"),
-                                        ("serial_log", args.serial_log, "--serial-log")) if p is not None}
     outputs = _Outputs()
-    outputs.check_space(wanted, 0.0)            # open-ended: the free-space margin only
     try:
-        out_tmp = outputs.add("out", args.out, "--out") if args.out is not None else None
-        can_tmp = outputs.add("can_log", args.can_log, "--can-log") if args.can_log is not None else None
-        ser_tmp = outputs.add("serial_log", args.serial_log, "--serial-log") if args.serial_log else None
+        files = outputs.open_all(args.out, args, 0.0)     # open-ended: the free-space margin only
         if args.viewer:             # the last check, the first thing started: the viewer's window
             try:
                 live = spawn_live_viewer()[1]
             except ViewerError as exc:
                 raise _usage_error(str(exc)) from None
-        opts = ServeOptions(**rig_fields(args, controllers), out=out_tmp, can_log=can_tmp,
-                            can_log_name=None if args.can_log is None else args.can_log.name,
-                            serial_log=ser_tmp, live=live,
+        opts = ServeOptions(**rig_fields(args, controllers), **files, live=live,
                             tcp_port=args.tcp, host=args.host, idle_timeout_s=args.idle_timeout or None,
                             speed=args.speed)
         try:
             code = serve(opts, should_stop=lambda: stop["signal"] is not None)
-        except ServeError as exc:
+        except (ServeError, LawError) as exc:     # LawError: a law that cannot be made for every board
             raise _usage_error(str(exc)) from None
         except (OSError, RrdReadError) as exc:
             sys.stderr.write(f"humanoid-twin: error: cannot write the outputs: "

@@ -189,9 +189,9 @@ def load_controllers(args: argparse.Namespace) -> dict[str, Any]:
 def load_scenario_arg(ref: str) -> Any:
     """The scenario of ``run`` / ``sweep``'s argument (:func:`humanoid_twin.scenarios.load_scenario`);
     one that cannot be loaded is a usage error naming it."""
-    from humanoid_twin.scenarios import ScenarioLoadError, is_reference, load_scenario
+    from humanoid_twin.scenarios import ScenarioLoadError, is_reference, load_scenario, split_reference
 
-    if is_reference(ref) and not ref.partition(":")[0].endswith(".py"):
+    if is_reference(ref) and not split_reference(ref)[0].endswith(".py"):
         _cwd_importable()
     try:
         return load_scenario(ref)
@@ -211,17 +211,15 @@ def rig_fields(args: argparse.Namespace, controllers: dict[str, Any]) -> dict[st
                 laws=controllers["laws"], pic_mhz=args.pic_mhz)
 
 
-def run_options(args: argparse.Namespace, controllers: dict[str, Any], out: Path | None,
-                can_log: Path | None, serial_log: Path | None = None) -> Any:
-    """The :class:`~humanoid_twin.scenarios.RunOptions` of a parsed ``run`` (``out``,
-    ``can_log``, ``serial_log``: the temporary names the outputs are written under)."""
+def run_options(args: argparse.Namespace, controllers: dict[str, Any], files: dict[str, Any]) -> Any:
+    """The :class:`~humanoid_twin.scenarios.RunOptions` of a parsed ``run`` (``files``: the
+    output fields, the temporary names the outputs are written under, cli/main.py's
+    ``_Outputs.open_all``)."""
     from humanoid_twin.scenarios import RunOptions
 
     return RunOptions(
-        **rig_fields(args, controllers),
-        out=out, can_log=can_log, can_log_name=None if args.can_log is None else args.can_log.name,
-        serial_log=serial_log, scenario=args.scenario, duration=args.duration, T=args.T, motion=args.motion,
-        perna=args.perna,
+        **rig_fields(args, controllers), **files, scenario=args.scenario, duration=args.duration,
+        T=args.T, motion=args.motion, perna=args.perna,
         control=args.control, progress=not args.no_progress, host_controller=controllers["host_controller"],
         host_period_ms=controllers["host_period_ms"], wall_timeout=args.wall_timeout,
     )

@@ -9,7 +9,7 @@ from pathlib import Path
 from typing import Any
 
 from humanoid_twin.cli.argtypes import count, wall_seconds
-from humanoid_twin.cli.options import scenario_arg
+from humanoid_twin.cli.options import SEED_MAX, scenario_arg
 from humanoid_twin.sweep.engine import (
     BACKENDS,
     DEFAULT_TIMEOUT_S,
@@ -103,9 +103,11 @@ def plan_sweep(args: argparse.Namespace, parser: argparse.ArgumentParser
     """Check every input of ``sweep`` (``parser``: the CLI's, whose ``run`` checks each value);
     returns the grid, the seeds and the task. Raises :class:`SweepError` (or exits 2 through the
     parser) before anything is written."""
+    from humanoid_twin.scenarios import split_reference
+
     run_args = list(args.run_args)
-    where, colon, name = args.scenario.rpartition(":")
-    if colon and where.endswith(".py"):       # a user's file: found by every run, whatever its cwd
+    where, name = split_reference(args.scenario)
+    if where.endswith(".py"):                 # a user's file: found by every run, whatever its cwd
         args.scenario = f"{Path(where).expanduser().resolve()}:{name}"
     base = vars(parser.parse_args(["run", args.scenario, "--no-record"]))
     given = vars(parser.parse_args(["run", args.scenario, "--no-record", *run_args]))
@@ -141,8 +143,8 @@ def plan_sweep(args: argparse.Namespace, parser: argparse.ArgumentParser
         n_points *= len(values)
     if n_points > MAX_POINTS:
         raise SweepError(f"{n_points} runs: a sweep runs at most {MAX_POINTS} (split it)")
-    if any(not 0 <= sd <= 2**32 - 1 for sd in seeds):
-        raise SweepError("--param seed: seeds are 0..4294967295")
+    if any(not 0 <= sd <= SEED_MAX for sd in seeds):
+        raise SweepError(f"--param seed: seeds are 0..{SEED_MAX}")
     _check_every_point(args, parser, run_args, params, seeds)
     table_format(args.out)
     _writable_dir(args.out, "--out")

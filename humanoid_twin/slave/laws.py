@@ -374,7 +374,21 @@ def load_law(ref: str) -> LawFactory:
         raise LawError(f"law {ref!r} has no step(inputs) method")
     if getattr(probe, "output", VELOCITY) not in (VELOCITY, POSITION):
         raise LawError(f"law {ref!r}: output must be {VELOCITY!r} or {POSITION!r}, got {probe.output!r}")
+    _check_cost(probe, ref)
     return obj
+
+
+def _check_cost(law: Any, name: str) -> None:
+    """:class:`LawError` when ``law`` declares a cost (``cycles``) that is not one or raises."""
+    from humanoid_twin.containment import describe, user_fault
+    from humanoid_twin.cycles import law_cycles
+
+    try:
+        law_cycles(law, ControlType.BALANCE_CONTROL)   # the type: the cost of a law declaring none
+    except BaseException as exc:       # a user's cycles: not a cost, or it raised
+        if not user_fault(exc):
+            raise
+        raise LawError(f"law {name!s:.80}: {describe(exc)}") from None
 
 
 def parse_law_option(text: str) -> tuple[int, str]:
@@ -413,7 +427,7 @@ def install_laws(twin: Any, laws: Mapping[int | str, Any] | Iterable[tuple[int |
     """Put the given laws on every Slave of ``twin`` (each board gets its own instance), replacing
     the built-in law of each control type named: ``install_laws(twin, {"balance": MyLaw})``."""
     from humanoid_twin.containment import describe, user_fault
-    from humanoid_twin.cycles import law_cycles, note_default_cost
+    from humanoid_twin.cycles import note_default_cost
 
     first: list[tuple[Any, int]] = []       # one instance per type: its cost said once, at the end
     for ctype, factory in resolve_laws(laws).items():
@@ -425,13 +439,7 @@ def install_laws(twin: Any, laws: Mapping[int | str, Any] | Iterable[tuple[int |
                     raise
                 raise LawError(f"law {getattr(factory, '__qualname__', '?')!s:.80} cannot be made for "
                                f"SCU {slave.address}: {describe(exc)}") from None
-            try:
-                law_cycles(law, ctype)
-            except BaseException as exc:   # a user's cycles: not a cost, or it raised
-                if not user_fault(exc):
-                    raise
-                name = getattr(factory, "__qualname__", "?")
-                raise LawError(f"law {name!s:.80}: {describe(exc)}") from None
+            _check_cost(law, getattr(factory, "__qualname__", "?"))
             slave.servo.set_law(ctype, law)
         first.append((law, ctype))
     for law, ctype in first:

@@ -106,8 +106,9 @@ class RunCli:
         if self.recordings is None:
             argv.append("--no-record")
         else:
-            stem = self.scenario.rpartition(":")[2]     # a user's FILE.py:NAME or MODULE:NAME: NAME
-            argv.append(f"--out={Path(self.recordings) / (stem + '_' + point.label() + '.rrd')}")
+            from humanoid_twin.scenarios import recording_name
+
+            argv.append(f"--out={Path(self.recordings) / recording_name(self.scenario, point.label())}")
         return argv
 
     def __call__(self, point: Point) -> dict[str, Any]:
