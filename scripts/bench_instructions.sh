@@ -27,6 +27,9 @@ for d in 4 8; do
   valgrind --tool=callgrind --callgrind-out-file=/dev/null "$py" "$tmp/run.py" $d 2> "$tmp/vg$d.txt" &
 done
 wait
-ir() { grep -m1 "Collected" "$1" | awk '{print $4}'; }
+ir() {   # the run's instruction count, or the run's error and exit 1
+  grep -m1 "Collected" "$1" | awk '{print $4}' | grep . ||
+    { echo "$0: the run under valgrind failed ($py; set PYTHON=.venv/bin/python?):" >&2; tail -5 "$1" >&2; exit 1; }
+}
 a=$(ir "$tmp/vg4.txt"); b=$(ir "$tmp/vg8.txt")
 echo "flexao, $mode: $(( (b - a) / 4 / 1000000 )) M instructions per simulated second"
