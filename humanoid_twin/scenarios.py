@@ -371,6 +371,9 @@ def load_scenario(ref: str | Scenario) -> Scenario:
     if not isinstance(obj, Scenario):
         raise ScenarioLoadError(f"scenario {ref!r} is not a Scenario (got {type(obj).__name__}; "
                                 "docs/scenarios.md, \"Your own scenario\")")
+    if not isinstance(obj.name, str) or not obj.name.strip() or "/" in obj.name or "\0" in obj.name:
+        raise ScenarioLoadError(f"scenario {ref!r}: its name {obj.name!r} cannot name a file "
+                                "(the default recording is NAME.rrd): give it a name without '/'")
     _loaded[ref] = obj
     return obj
 

@@ -78,6 +78,7 @@ boom = Boom("boom", REGISTRY["stand"].factory, moves=False)
 slow_boom = SlowBoom("slow_boom", REGISTRY["stand"].factory, moves=False)
 not_a_scenario = 42
 alias = REGISTRY["stand"]            # the reference says alias, the scenario's name is stand
+nameless = Boom("", REGISTRY["stand"].factory, moves=False)
 '''
 
 
@@ -85,6 +86,7 @@ alias = REGISTRY["stand"]            # the reference says alias, the scenario's 
     ("{dir}/missing.py:x", "no such file"),
     ("{dir}/user.py:nope", "has no 'nope'"),
     ("{dir}/user.py:not_a_scenario", "is not a Scenario (got int"),
+    ("{dir}/user.py:nameless", "cannot name a file"),
     ("{dir}/syntax.py:x", "cannot import"),
     ("no_such_module_xyz:x", "cannot import no_such_module_xyz"),
     ("walk", "invalid choice: 'walk'"),
