@@ -356,15 +356,7 @@ class Supervisor:
             c = self.foot_cop_mm(k)
             if c is not None:
                 cops.append(c)
-        if not cops:
-            return -1.0
-        if len(cops) == 1:
-            x, y = cops[0]
-            return min(x - SENSOR_X_MIN, SENSOR_X_MAX - x, y - SENSOR_Y_MIN, SENSOR_Y_MAX - y)
-        ys = [y for _, y in cops]
-        front = max([SENSOR_Y_MAX - y for y in ys])
-        back = max([y - SENSOR_Y_MIN for y in ys])
-        return min(front, back)
+        return _support_margin(cops)
 
     def boot_balance_margin_mm(self) -> float | None:
         """:meth:`balance_margin_mm` for standby and self_check, where a fall must be seen too
