@@ -15,9 +15,18 @@ from typing import Any
 
 from humanoid_twin import signals
 
-__all__ = ["MESSAGE_LIMIT", "user_fault", "short_repr", "describe", "law_output"]
+__all__ = ["MESSAGE_LIMIT", "user_fault", "short_repr", "describe", "law_output", "attribute_path"]
 
 MESSAGE_LIMIT = 200          # characters of a value or an exception message in a fault's reason
+
+
+def attribute_path(obj: Any, dotted: str) -> Any:
+    """The object at ``dotted`` (``NAME`` or ``Class.attr``) inside ``obj`` (a user's module): the
+    NAME part of a ``module:NAME`` reference (``--law``, ``--host-controller``, a scenario).
+    ``AttributeError`` when a part is missing; each caller says so in its own words."""
+    for part in dotted.split("."):
+        obj = getattr(obj, part)
+    return obj
 
 
 def user_fault(exc: BaseException) -> bool:

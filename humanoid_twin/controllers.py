@@ -23,7 +23,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from humanoid_twin import host as _host
-from humanoid_twin.containment import describe, user_fault
+from humanoid_twin.containment import attribute_path, describe, user_fault
 from humanoid_twin.host.timebase import now as host_now
 from humanoid_twin.host.timebase import sleep as host_sleep
 from humanoid_twin.monitor import Monitor
@@ -116,10 +116,12 @@ def load_host_controller(ref: str | HostStep) -> HostStep:
     except Exception as exc:   # a user's module: any import failure is a bad option
         raise ControllerError(f"--host-controller {ref!r}: cannot import {mod_name!r}: "
                               f"{type(exc).__name__}: {exc}") from None
-    for part in attr.split("."):
-        obj = getattr(obj, part, None)
-        if obj is None:
-            raise ControllerError(f"--host-controller {ref!r}: module {mod_name!r} has no {attr!r}")
+    try:
+        obj = attribute_path(obj, attr)
+    except AttributeError:
+        obj = None
+    if obj is None:
+        raise ControllerError(f"--host-controller {ref!r}: module {mod_name!r} has no {attr!r}")
     if not callable(obj):
         raise ControllerError(f"--host-controller {ref!r} is not a function")
     return obj

@@ -31,7 +31,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from humanoid_twin.clock import US_PER_S
-from humanoid_twin.containment import describe, user_fault
+from humanoid_twin.containment import attribute_path, describe, user_fault
 from humanoid_twin.controllers import load_host_controller, run_host_controller
 from humanoid_twin.host import drivers
 from humanoid_twin.host.motion import exe_traj, send_gains
@@ -347,11 +347,10 @@ def load_scenario(ref: str | Scenario) -> Scenario:
         if not where or not attr:
             raise ScenarioLoadError(f"scenario {ref!r}: expected FILE.py:NAME or MODULE:NAME")
         obj: Any = _import(ref, where)
-        for part in attr.split("."):
-            try:
-                obj = getattr(obj, part)
-            except AttributeError:
-                raise ScenarioLoadError(f"scenario {ref!r}: {where} has no {attr!r}") from None
+        try:
+            obj = attribute_path(obj, attr)
+        except AttributeError:
+            raise ScenarioLoadError(f"scenario {ref!r}: {where} has no {attr!r}") from None
     else:
         from importlib.metadata import entry_points
 

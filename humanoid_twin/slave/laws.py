@@ -345,11 +345,12 @@ def load_law(ref: str) -> LawFactory:
         except Exception as exc:   # a user's module: any import failure is a bad --law
             why = f"{type(exc).__name__}: {exc}"
             raise LawError(f"cannot import {mod_name!r} for law {ref!r}: {why}") from None
-        for part in attr.split("."):
-            try:
-                obj = getattr(obj, part)
-            except AttributeError:
-                raise LawError(f"module {mod_name!r} has no {attr!r} (law {ref!r})") from None
+        from humanoid_twin.containment import attribute_path
+
+        try:
+            obj = attribute_path(obj, attr)
+        except AttributeError:
+            raise LawError(f"module {mod_name!r} has no {attr!r} (law {ref!r})") from None
     else:
         eps = [ep for ep in entry_points(group=ENTRY_POINT_GROUP) if ep.name == ref]
         if not eps:
