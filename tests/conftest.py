@@ -8,9 +8,12 @@ boot build their twin themselves and call :func:`humanoid_twin.rig.boot` on it, 
 
 from __future__ import annotations
 
+import json
 import select
 import subprocess
 import sys
+import textwrap
+import time
 from collections.abc import Iterator
 from typing import Any
 
@@ -37,10 +40,37 @@ def booted_twin() -> Iterator[tuple[Twin, Any]]:
         yield rig.twin, rig.boot()
 
 
+# The head of a plain pyserial client, a user's own program that uses no project code: its imports
+# and the RS-232 frame of docs/protocol.md written out by hand (start byte, OpCode, three data
+# bytes, the XOR of all five). A test adds its port and its requests below it.
+PYSERIAL_FRAME = """
+import json, sys, time
+import serial
+
+
+def frame(op, scu, param, d1=0, d2=0, d3=0):
+    b = [0xFF, (op << 6) | (scu << 2) | param, d1 & 0xFF, d2 & 0xFF, d3 & 0xFF]
+    x = 0
+    for v in b:
+        x ^= v
+    return bytes(b + [x])
+"""
+
+
+def wait_for_mode(robot: Any, mode_name: str, timeout_s: float) -> str:
+    """Poll a :class:`~humanoid_twin.host.drivers.HumanoidClient` every 50 ms until its Master's
+    supervisor reports ``mode_name`` or ``timeout_s`` wall seconds pass; the mode it reported last."""
+    deadline = time.monotonic() + timeout_s
+    while (name := robot.supervisor().mode_name) != mode_name and time.monotonic() < deadline:
+        time.sleep(0.05)
+    return name
+
+
 class ServeStarter:
     """``proc, port = serve(*args)`` starts ``humanoid-twin serve ARGS`` and returns once it has
-    printed its port (30 s at most); ``serve.stop(proc)`` stops it (SIGTERM, then kill). Every
-    child still running when the test ends is stopped."""
+    printed its port (30 s at most); ``serve.client(code, port)`` runs a client program against
+    it; ``serve.stop(proc)`` stops it (SIGTERM, then kill). Every child still running when the
+    test ends is stopped."""
 
     def __init__(self) -> None:
         self.procs: list[subprocess.Popen] = []
@@ -54,6 +84,15 @@ class ServeStarter:
             self.stop(proc)
             raise AssertionError("serve printed no port in 30 s")
         return proc, proc.stdout.readline().strip()
+
+    @staticmethod
+    def client(code: str, port: str, timeout: float = 60) -> dict:
+        """Run the client program ``code`` (dedented) in a child process with serve's ``port``
+        as its argument; what it printed last, a JSON object."""
+        r = subprocess.run([sys.executable, "-c", textwrap.dedent(code), port], capture_output=True,
+                           text=True, timeout=timeout)
+        assert r.returncode == 0, r.stderr
+        return json.loads(r.stdout.strip().splitlines()[-1])
 
     @staticmethod
     def stop(proc: subprocess.Popen) -> None:

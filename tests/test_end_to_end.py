@@ -3,10 +3,7 @@ TCP to clients in other processes (a plain pyserial client, and the host drivers
 
 from __future__ import annotations
 
-import json
 import os
-import subprocess
-import sys
 import textwrap
 import time
 from collections import defaultdict
@@ -14,6 +11,7 @@ from collections import defaultdict
 import can
 import numpy as np
 import pytest
+from conftest import PYSERIAL_FRAME
 
 from humanoid_twin.bus.frames import frame_bits
 from humanoid_twin.hardware import PWM_BUSY_US, PWM_PERIOD_US
@@ -151,25 +149,8 @@ def test_same_seed_same_bytes_and_trajectories():
 # --------------------------------------------------------------------------------------------
 # serve: a pty and a TCP port for clients in other processes
 # --------------------------------------------------------------------------------------------
-def _client(code: str, port: str, timeout: float = 60) -> dict:
-    r = subprocess.run([sys.executable, "-c", textwrap.dedent(code), port], capture_output=True, text=True,
-                       timeout=timeout)
-    assert r.returncode == 0, r.stderr
-    return json.loads(r.stdout.strip().splitlines()[-1])
-
-
-PLAIN_CLIENT = r"""
-    import json, sys, time
-    import serial
-
+PLAIN_CLIENT = PYSERIAL_FRAME + textwrap.dedent(r"""
     port = serial.serial_for_url(sys.argv[1], baudrate=115200, parity="E", timeout=1.0)
-
-    def frame(op, scu, param, d1=0, d2=0, d3=0):
-        b = [0xFF, (op << 6) | (scu << 2) | param, d1 & 0xFF, d2 & 0xFF, d3 & 0xFF]
-        x = 0
-        for v in b:
-            x ^= v
-        return bytes(b + [x])
 
     def ask(raw):
         port.reset_input_buffer()
@@ -193,7 +174,7 @@ PLAIN_CLIENT = r"""
     port.write(bytes(bad) + bytes([0x12, 0xFF, 0x34]) + frame(3, 0, 0))
     out["after_noise"] = port.read(12).hex(" ")
     print(json.dumps(out))
-"""
+""")
 
 
 def _bcc(*b: int) -> int:
@@ -208,7 +189,7 @@ def test_plain_pyserial_client_over_a_pty(serve):
     proc, port = serve("--pty")
     try:
         assert port.startswith("/dev/pts/") and os.path.exists(port)
-        out = _client(PLAIN_CLIENT, port)
+        out = serve.client(PLAIN_CLIENT, port)
     finally:
         serve.stop(proc)
     assert out["test"] == "fa f9 f8 f7 f6 f5"
@@ -250,7 +231,7 @@ def test_host_drivers_unchanged_against_serve(mode, serve):
     try:
         if mode == "tcp":
             assert port.startswith("socket://127.0.0.1:")
-        out = _client(DRIVER_CLIENT, port, timeout=90)
+        out = serve.client(DRIVER_CLIENT, port, timeout=90)
     finally:
         serve.stop(proc)
     assert out["test_ok"] and out["can_error"] == 0
@@ -292,7 +273,7 @@ def test_serve_speed_slows_the_twin_down(serve):
     little early (5.15 s seen): the bound keeps 15 % for that and still fails at 1x."""
     proc, port = serve("--tcp", "0", "--speed", "0.5")
     try:
-        out = _client(BOOT_CLIENT, port, timeout=60)
+        out = serve.client(BOOT_CLIENT, port, timeout=60)
     finally:
         serve.stop(proc)
     assert out["wall_s"] >= 0.85 * 2.65 / 0.5

@@ -11,6 +11,7 @@ import socket
 import time
 
 import pytest
+from conftest import wait_for_mode
 
 from humanoid_twin.host import drivers
 from humanoid_twin.host.motion import power_on
@@ -87,10 +88,7 @@ def test_reset_and_apply_over_serve_tcp_against_a_silent_board_accepts_no_apply(
     host, _, tcp = port.removeprefix("socket://").rpartition(":")
     with drivers.HumanoidClient(port, timeout=1.0) as robot:
         power_on(robot.serial_port, timeout=10.0)
-        deadline = time.monotonic() + 8
-        while robot.supervisor().mode_name != "safe" and time.monotonic() < deadline:
-            time.sleep(0.05)
-        assert robot.supervisor().mode_name == "safe"
+        assert wait_for_mode(robot, "safe", 8) == "safe"
     with socket.create_connection((host, int(tcp)), timeout=2.0) as sock:
         accepted = resets = applies = 0
         end = time.monotonic() + 1.5

@@ -4,11 +4,9 @@ does before anything is written, runs ``--law``, and tilts the platform once the
 
 from __future__ import annotations
 
-import json
 import signal
 import subprocess
 import sys
-import textwrap
 
 import can
 import pytest
@@ -36,9 +34,7 @@ def test_serve_records_the_run_and_keeps_complete_files_when_stopped(serve, tmp_
     out.write_text("an earlier recording")          # replaced only by a complete one
     proc, port = serve("--tcp", "0", "--out", str(out), "--can-log", str(log), "--tilt", "2",
                        "--law", "balance=humanoid_twin.slave.laws:JacobianLaw", "--fault", "force-noise:1")
-    r = subprocess.run([sys.executable, "-c", textwrap.dedent(BOOT_CLIENT), port], capture_output=True,
-                       text=True, timeout=60)
-    assert r.returncode == 0 and json.loads(r.stdout)["booted"], r.stderr
+    assert serve.client(BOOT_CLIENT, port)["booted"]
     proc.send_signal(sig)
     _, err = proc.communicate(timeout=60)
     assert proc.returncode == code, err

@@ -17,6 +17,7 @@ from pathlib import Path
 
 import can
 import pytest
+from conftest import PYSERIAL_FRAME
 
 from humanoid_twin.bus.serial_log import TAP_TO_DEVICE, TAP_TO_HOST, read_log
 from humanoid_twin.protocol.rs232 import FrameError, decode_response
@@ -29,18 +30,8 @@ REPLAY = [sys.executable, "-m", "humanoid_twin.bus.serial_log", "replay"]
 
 # a plain pyserial client on serve's TCP port: the Master's TEST, then the head board (SCU 8):
 # positions, movement period, PWM on (it calibrates), and its positions read back
-PYSERIAL_CLIENT = r"""
-    import json, sys, time
-    import serial
-
+PYSERIAL_CLIENT = PYSERIAL_FRAME + textwrap.dedent(r"""
     port = serial.serial_for_url(sys.argv[1], baudrate=115200, parity="E", timeout=2.0)
-
-    def frame(op, scu, param, d1=0, d2=0, d3=0):
-        b = [0xFF, (op << 6) | (scu << 2) | param, d1 & 0xFF, d2 & 0xFF, d3 & 0xFF]
-        x = 0
-        for v in b:
-            x ^= v
-        return bytes(b + [x])
 
     def ask(raw):
         port.write(raw)
@@ -52,7 +43,7 @@ PYSERIAL_CLIENT = r"""
     out["position"] = ask(frame(2, 8, 0))
     port.close()
     print(json.dumps(out))
-"""
+""")
 
 
 def _replay(path: Path) -> subprocess.CompletedProcess:
@@ -65,10 +56,7 @@ def test_a_serve_session_leaves_a_recording_a_can_log_and_a_serial_log_that_repl
     proc, port = serve("--tcp", "0", "--speed", "2", "--seed", "7", "--fault", "force-noise:1",
                        "--out", str(out), "--can-log", str(canlog), "--serial-log", str(serlog))
     assert port.startswith("socket://127.0.0.1:")
-    r = subprocess.run([sys.executable, "-c", textwrap.dedent(PYSERIAL_CLIENT), port], capture_output=True,
-                       text=True, timeout=60)
-    assert r.returncode == 0, r.stderr
-    answers = json.loads(r.stdout)
+    answers = serve.client(PYSERIAL_CLIENT, port)
     assert answers["test"] == "fa f9 f8 f7 f6 f5" and all(a.startswith("fb") for a in answers["boot"])
     assert answers["position"].startswith("fd")
     proc.send_signal(signal.SIGINT)

@@ -7,6 +7,7 @@ from __future__ import annotations
 import time
 
 import pytest
+from conftest import wait_for_mode
 
 from humanoid_twin.host import drivers
 from humanoid_twin.host.motion import exe_traj, power_on
@@ -111,10 +112,7 @@ def test_estop_reset_power_on_over_serve(where, serve) -> None:
     try:
         with drivers.HumanoidClient(port, timeout=0.5) as robot:
             power_on(robot.serial_port, timeout=10.0)
-            deadline = time.monotonic() + 5
-            while robot.supervisor().mode_name != "ready" and time.monotonic() < deadline:
-                time.sleep(0.05)
-            assert robot.supervisor().mode_name == "ready"
+            assert wait_for_mode(robot, "ready", 5) == "ready"
             robot.estop()
             sup = robot.supervisor()
             assert (sup.mode, sup.mode_name) == (4, "estop")
@@ -127,10 +125,7 @@ def test_estop_reset_power_on_over_serve(where, serve) -> None:
             robot.reset()
             assert robot.supervisor().mode_name == "self_check"
             power_on(robot.serial_port, timeout=10.0)
-            deadline = time.monotonic() + 5
-            while robot.supervisor().mode_name != "ready" and time.monotonic() < deadline:
-                time.sleep(0.05)
-            assert robot.supervisor().mode_name == "ready"
+            assert wait_for_mode(robot, "ready", 5) == "ready"
             robot.set_positions(1, [0, 5, 0])   # accepted again
     finally:
         serve.stop(proc)
