@@ -3,6 +3,7 @@ cimport cython
 
 from humanoid_twin.clock cimport Clock
 from humanoid_twin.master.can cimport MasterCan
+from humanoid_twin.cycles cimport cycles_to_us   # the cycles of a timer slot, a C call
 from humanoid_twin.master.database cimport Database
 
 cdef long long N_SCU   # a C value here (ROUND_US and the other periods stay Python names)

@@ -6,6 +6,7 @@ cimport cython
 
 from humanoid_twin.clock cimport Clock
 from humanoid_twin.slave.can cimport SlaveCan
+from humanoid_twin.cycles cimport cycles_to_us   # the cycles of a pass, a C call
 from humanoid_twin.slave.data cimport calcCoP
 from humanoid_twin.slave.database cimport (
     Actuators,
