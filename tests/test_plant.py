@@ -577,3 +577,19 @@ def test_a_robot_lying_on_a_tilted_platform_has_fallen() -> None:
     _place_robot_on_platform(p, 30.0, 0.0, lying=True)
     tr = p.truth()
     assert tr.fell and tr.trunk_tilt_deg == pytest.approx(120.0)    # lying along it, head down the slope
+
+
+def test_the_sensor_front_end_rounds_as_python_does():
+    """The boards' ADC rounding (plant/sensors.py, C doubles in the compiled core) is Python's
+    round: to nearest, ties to even, also next to the ties and for negative values."""
+    import math
+    import random
+
+    from humanoid_twin.plant.sensors import round_half_even
+
+    values = [k / 2 for k in range(-41, 42)]                          # every tie in -20.5..20.5
+    values += [math.nextafter(v, d) for v in values for d in (-math.inf, math.inf)]
+    values += [0.0, -0.0, 0.49999999999999994, -0.49999999999999994, 1023.5, 254.5, 1e15 + 0.5]
+    rng = random.Random(7)
+    values += [rng.uniform(-1100.0, 1100.0) for _ in range(20_000)]
+    assert [round_half_even(v) for v in values] == [round(v) for v in values]

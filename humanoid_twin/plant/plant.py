@@ -31,6 +31,8 @@ from humanoid_twin.clock import US_PER_S
 from humanoid_twin.plant import constants as C  # noqa: N812
 from humanoid_twin.plant.drawing import WXYZ_TO_XYZW, Drawing, GeomInfo, ViewerWindow  # noqa: F401 (recorder)
 from humanoid_twin.plant.imu import TrunkImu
+from humanoid_twin.plant.sensors import DEG_PER_RAD as _DEG_PER_RAD
+from humanoid_twin.plant.sensors import SensorFrontEnd
 from humanoid_twin.plant.truth import FOOT_BODIES, GroundTruth, TruthProbe
 from humanoid_twin.protocol.wire import N_SCU, POS_LIMIT_DEG, check_scu
 
@@ -179,6 +181,9 @@ class Plant:
                                  pad_list=pad_list, joint_names=self._joint_names,
                                  joint_qadr=self._joint_qadr)
         self._drawing = Drawing(m, self.data, self._pad_of_geom)
+        # the boards' ADC front end (compiled): reads these MjData arrays in C
+        d = self.data
+        self._sense = SensorFrontEnd(d.qpos, d.qvel, d.actuator_force, d.sensordata)
 
         # the hardware: potentiometer offsets, drawn once per plant (what calibration estimates)
         ss = np.random.SeedSequence(self.seed)
@@ -372,27 +377,10 @@ class Plant:
         rows = self._servo.get(scu) if type(scu) is int else None
         if rows is None:
             _check_scu(scu)
-        qpos = self.data.qpos
-        qvel = self.data.qvel
-        force = self.data.actuator_force
-        b_true = self.pot_b_true_deg[scu]
         noise = self._pot_noise
         if len(noise) < 3:
             noise.extend(self._pot_rng.normal(0.0, C.POT_NOISE_STD_COUNTS, _NOISE_BLOCK).tolist())
-        adc: list[int] = []
-        cur: list[int] = []
-        full = hardware.CURRENT_PULSE_FULL_US
-        for i, (qadr, dadr, a, sign, stall, damping) in enumerate(rows):
-            deg = sign * float(qpos[qadr]) * _DEG_PER_RAD
-            v = round((b_true[i] - deg) * hardware.POT_COUNTS_PER_DEG + noise.pop())
-            adc.append(0 if v < 0 else (hardware.POT_ADC_MAX if v > hardware.POT_ADC_MAX else v))
-            if self._powered[a]:
-                torque = abs(float(force[a]) - damping * float(qvel[dadr]))
-                w = C.CURRENT_IDLE_US + round(full * (torque / stall if torque < stall else 1.0))
-                cur.append(w if w < full else full)
-            else:
-                cur.append(0)
-        return adc, cur
+        return self._sense.servos(rows, self.pot_b_true_deg[scu], self._powered, noise)
 
     def read_force_adc(self, scu: int) -> list[int]:
         """The four force sensors of the foot of ``scu`` as 8-bit ADC values (table 12 order).
@@ -406,18 +394,10 @@ class Plant:
         if adrs is None:
             _check_scu(scu)
             return [0, 0, 0, 0]
-        sd = self.data.sensordata
         noise = self._force_noise
         if len(noise) < 4:
             noise.extend(self._force_rng.normal(0.0, C.FORCE_NOISE_STD_COUNTS, _NOISE_BLOCK).tolist())
-        out: list[int] = []
-        for adr in adrs:
-            f = float(sd[adr])
-            if f <= 0.0:
-                out.append(0)
-                continue
-            v = round(f * _COUNTS_PER_N + noise.pop())
-            out.append(0 if v < 0 else (hardware.FORCE_ADC_MAX if v > hardware.FORCE_ADC_MAX else v))
+        out = self._sense.forces(adrs, noise)
         if self._force_fault:
             return self._faulty_forces(scu, out)
         return out
@@ -622,7 +602,5 @@ class Plant:
 _RAD_PER_US = math.radians(1.0) / hardware.PULSE_US_PER_DEG
 _PULSE_MIN_US = hardware.pulse_from_deg(-POS_LIMIT_DEG)
 _PULSE_MAX_US = hardware.pulse_from_deg(POS_LIMIT_DEG)
-_DEG_PER_RAD = 180.0 / math.pi
-_COUNTS_PER_N = 1.0 / hardware.FORCE_N_PER_COUNT
 _SIDES = {"r": "r_foot", "right": "r_foot", "r_foot": "r_foot",
           "l": "l_foot", "left": "l_foot", "l_foot": "l_foot"}

@@ -1,0 +1,27 @@
+# C declarations for sensors.py (the compiled core, docs/architecture.md): the same source,
+# compiled. MjData's arrays as C memoryviews, taken once; the arithmetic on C doubles.
+cimport cython
+
+cdef double _DEG
+cdef double _COUNTS
+cdef double _POT_COUNTS_PER_DEG
+cdef long _POT_ADC_MAX
+cdef long _CURRENT_FULL_US
+cdef long _CURRENT_IDLE_US
+cdef long _FORCE_ADC_MAX
+
+@cython.locals(a=cython.double, r=cython.long, d=cython.double)
+cpdef long round_half_even(double x) noexcept
+
+cdef class SensorFrontEnd:
+    cdef const double[::1] _qpos
+    cdef const double[::1] _qvel
+    cdef const double[::1] _force
+    cdef const double[::1] _sensordata
+
+    @cython.locals(i=cython.long, qadr=cython.long, dadr=cython.long, a=cython.long, sign=cython.long,
+                   stall=cython.double, damping=cython.double, deg=cython.double, v=cython.long,
+                   torque=cython.double, load=cython.double, w=cython.long, adc=list, cur=list)
+    cpdef tuple servos(self, tuple rows, tuple b_true, list powered, list noise)
+    @cython.locals(k=cython.long, f=cython.double, v=cython.long, out=list)
+    cpdef list forces(self, tuple adrs, list noise)
