@@ -15,12 +15,12 @@ host controller uses on ``readspecial(H, 5)``.
 from __future__ import annotations
 
 import math
-from typing import Any
 
 import mujoco
 import numpy as np
 
 from humanoid_twin import hardware as hw
+from humanoid_twin.plant.sensors import SensorFrontEnd
 
 __all__ = ["INCL_BANDWIDTH_HZ", "GYRO_BANDWIDTH_HZ", "INCL_NOISE_COUNTS", "GYRO_NOISE_COUNTS", "TrunkImu"]
 
@@ -38,9 +38,12 @@ def _count(x: float) -> int:
 
 
 class TrunkImu:
-    """The sensors' electronics: ``TrunkImu(model, seed_sequence)``; :meth:`read` at each sample."""
+    """The sensors' electronics: ``TrunkImu(model, seed_sequence, front_end)``; :meth:`read` at
+    each sample. ``front_end``: the plant's :class:`~humanoid_twin.plant.sensors.SensorFrontEnd`
+    on the same MjData (it reads the MuJoCo sensors)."""
 
-    def __init__(self, model: mujoco.MjModel, seed: np.random.SeedSequence) -> None:
+    def __init__(self, model: mujoco.MjModel, seed: np.random.SeedSequence,
+                 front_end: SensorFrontEnd) -> None:
         def adr(kind: str) -> int:
             for s in range(model.nsensor):
                 if int(model.sensor_type[s]) == int(getattr(mujoco.mjtSensor, kind)) and \
@@ -51,6 +54,7 @@ class TrunkImu:
         self._quat = adr("mjSENS_FRAMEQUAT")
         self._gyro = adr("mjSENS_GYRO")
         self._seed = seed
+        self._front = front_end
         self.reset()
 
     def reset(self) -> None:
@@ -60,17 +64,13 @@ class TrunkImu:
         self._state: list[float] | None = None
         self._t_us = 0
 
-    def true_attitude(self, data: Any) -> tuple[float, float, float, float]:
+    def true_attitude(self) -> tuple[float, float, float, float]:
         """The trunk's roll, pitch (deg) and body rates about x, y (deg/s): the sensors' input."""
-        w, x, y, z = (float(v) for v in data.sensordata[self._quat:self._quat + 4])
-        roll = math.degrees(math.atan2(2.0 * (w * x + y * z), 1.0 - 2.0 * (x * x + y * y)))
-        pitch = math.degrees(math.asin(max(-1.0, min(1.0, 2.0 * (w * y - z * x)))))
-        g = data.sensordata[self._gyro:self._gyro + 2]
-        return roll, pitch, math.degrees(float(g[0])), math.degrees(float(g[1]))
+        return self._front.attitude(self._quat, self._gyro)
 
-    def read(self, data: Any, t_us: int) -> list[int]:
+    def read(self, t_us: int) -> list[int]:
         """The four 8-bit ADC counts (``hardware.IMU_SENSOR_NAMES`` order) at physics time ``t_us``."""
-        x = self.true_attitude(data)
+        x = self.true_attitude()
         s = self._state
         if s is None:
             s = self._state = list(x)

@@ -201,7 +201,7 @@ class Plant:
         self._force_fault = False
         self._force_noise_counts = 0
         self._force_fault_rng = np.random.default_rng(ss.spawn(1)[0])
-        self._imu = TrunkImu(m, ss.spawn(1)[0])     # the body board's inclinometer and gyroscope
+        self._imu = TrunkImu(m, ss.spawn(1)[0], self._sense)     # the body board's inclinometer and gyroscope
         self._force_stuck: dict[int, list[int] | None] = {}
         self._stuck_actuators: set[int] = set()
         self.reset()
@@ -409,12 +409,12 @@ class Plant:
         if scu != hardware.IMU_SCU:
             _check_scu(scu)
             return [0, 0, 0, 0]
-        return self._imu.read(self.data, self.t_us)
+        return self._imu.read(self.t_us)
 
     def trunk_attitude_deg(self) -> tuple[float, float, float, float]:
         """Ground truth: the trunk's roll, pitch (deg) and body rates (deg/s) at the IMU site."""
         self._sync()
-        return self._imu.true_attitude(self.data)
+        return self._imu.true_attitude()
 
     # --- injected faults (humanoid_twin/faults.py) --------------------------------------------------
     def _faulty_forces(self, scu: int, out: list[int]) -> list[int]:

@@ -25,3 +25,6 @@ cdef class SensorFrontEnd:
     cpdef tuple servos(self, tuple rows, tuple b_true, list powered, list noise)
     @cython.locals(k=cython.long, f=cython.double, v=cython.long, out=list)
     cpdef list forces(self, tuple adrs, list noise)
+    @cython.locals(w=cython.double, x=cython.double, y=cython.double, z=cython.double,
+                   roll=cython.double, s=cython.double, pitch=cython.double)
+    cpdef tuple attitude(self, long quat_adr, long gyro_adr)

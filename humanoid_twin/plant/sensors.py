@@ -90,3 +90,17 @@ class SensorFrontEnd:
             v = round_half_even(f * _COUNTS + noise.pop())
             out.append(0 if v < 0 else (_FORCE_ADC_MAX if v > _FORCE_ADC_MAX else v))
         return out
+
+    def attitude(self, quat_adr: int, gyro_adr: int) -> tuple[float, float, float, float]:
+        """Roll, pitch (deg: the ZYX angles of the unit quaternion at ``sensordata[quat_adr:+4]``)
+        and the body rates about x, y (deg/s, ``sensordata[gyro_adr:+2]`` in rad/s): the trunk
+        inclinometer's and gyroscope's input (humanoid_twin/plant/imu.py)."""
+        sd = self._sensordata
+        w = sd[quat_adr]
+        x = sd[quat_adr + 1]
+        y = sd[quat_adr + 2]
+        z = sd[quat_adr + 3]
+        roll = math.atan2(2.0 * (w * x + y * z), 1.0 - 2.0 * (x * x + y * y)) * _DEG
+        s = 2.0 * (w * y - z * x)
+        pitch = math.asin(-1.0 if s < -1.0 else (1.0 if s > 1.0 else s)) * _DEG
+        return roll, pitch, sd[gyro_adr] * _DEG, sd[gyro_adr + 1] * _DEG
