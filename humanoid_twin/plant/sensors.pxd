@@ -2,6 +2,7 @@
 # compiled. MjData's arrays as C memoryviews, taken once; the arithmetic on C doubles.
 cimport cython
 
+cdef bint _COMPILED
 cdef double _DEG
 cdef double _COUNTS
 cdef double _POT_COUNTS_PER_DEG
@@ -20,10 +21,10 @@ cdef class SensorFrontEnd:
     cdef const double[::1] _sensordata
 
     @cython.locals(i=cython.long, qadr=cython.long, dadr=cython.long, a=cython.long, sign=cython.long,
-                   stall=cython.double, damping=cython.double, deg=cython.double, v=cython.long,
+                   stall=cython.double, damping=cython.double, deg=cython.double, x=cython.double, v=cython.long,
                    torque=cython.double, load=cython.double, w=cython.long, adc=list, cur=list)
     cpdef tuple servos(self, tuple rows, tuple b_true, list powered, list noise)
-    @cython.locals(k=cython.long, f=cython.double, v=cython.long, out=list)
+    @cython.locals(k=cython.long, f=cython.double, x=cython.double, v=cython.long, out=list)
     cpdef list forces(self, tuple adrs, list noise)
     @cython.locals(w=cython.double, x=cython.double, y=cython.double, z=cython.double,
                    roll=cython.double, s=cython.double, pitch=cython.double)

@@ -7,7 +7,8 @@ and foot force sensors as the boards' ADCs read them (PIC2 ``updateServoMeasures
 Part of the compiled core (sensors.pxd): the per-tick arithmetic reads MuJoCo's arrays through C
 memoryviews instead of one numpy scalar per value. No MuJoCo import here: the plant hands over
 its ``qpos``, ``qvel``, ``actuator_force`` and ``sensordata`` arrays once, and their memory is
-MjData's for the plant's whole life.
+MjData's for the plant's whole life. (Interpreted, each value read is turned into a Python
+float at once, as the plant did before: numpy scalars are slower and would leak into results.)
 """
 
 from __future__ import annotations
@@ -17,6 +18,12 @@ from typing import Any
 
 from humanoid_twin import hardware
 from humanoid_twin.plant import constants as C  # noqa: N812
+
+try:        # Cython's pure-Python mode: True in the compiled core (as in humanoid_twin/clock.py)
+    import cython
+    _COMPILED = cython.compiled
+except ImportError:
+    _COMPILED = False
 
 __all__ = ["SensorFrontEnd", "DEG_PER_RAD", "COUNTS_PER_N", "round_half_even"]
 
@@ -33,7 +40,8 @@ _FORCE_ADC_MAX = hardware.FORCE_ADC_MAX
 
 def round_half_even(x: float) -> int:
     """``round(x)`` as Python does it (to nearest, ties to even), on C doubles in the compiled core
-    (the builtin costs a Python call there). ``|x| < 2**52``: ``a - int(a)`` is then exact."""
+    (the builtin costs a Python call there; interpreted, the callers use the builtin itself).
+    ``|x| < 2**52``: ``a - int(a)`` is then exact."""
     a = -x if x < 0.0 else x
     r = int(a)
     d = a - r
@@ -65,13 +73,15 @@ class SensorFrontEnd:
         cur: list[int] = []
         for i in range(3):
             qadr, dadr, a, sign, stall, damping = rows[i]
-            deg = sign * qpos[qadr] * _DEG
-            v = round_half_even((b_true[i] - deg) * _POT_COUNTS_PER_DEG + noise.pop())
+            deg = sign * float(qpos[qadr]) * _DEG
+            x = (b_true[i] - deg) * _POT_COUNTS_PER_DEG + noise.pop()
+            v = round_half_even(x) if _COMPILED else round(x)
             adc.append(0 if v < 0 else (_POT_ADC_MAX if v > _POT_ADC_MAX else v))
             if powered[a]:
-                torque = abs(force[a] - damping * qvel[dadr])
+                torque = abs(float(force[a]) - damping * float(qvel[dadr]))
                 load = torque / stall if torque < stall else 1.0
-                w = _CURRENT_IDLE_US + round_half_even(_CURRENT_FULL_US * load)
+                x = _CURRENT_FULL_US * load
+                w = _CURRENT_IDLE_US + (round_half_even(x) if _COMPILED else round(x))
                 cur.append(w if w < _CURRENT_FULL_US else _CURRENT_FULL_US)
             else:
                 cur.append(0)
@@ -83,11 +93,12 @@ class SensorFrontEnd:
         sd = self._sensordata
         out: list[int] = []
         for k in range(4):
-            f = sd[adrs[k]]
+            f = float(sd[adrs[k]])
             if f <= 0.0:
                 out.append(0)
                 continue
-            v = round_half_even(f * _COUNTS + noise.pop())
+            x = f * _COUNTS + noise.pop()
+            v = round_half_even(x) if _COMPILED else round(x)
             out.append(0 if v < 0 else (_FORCE_ADC_MAX if v > _FORCE_ADC_MAX else v))
         return out
 
@@ -96,11 +107,11 @@ class SensorFrontEnd:
         and the body rates about x, y (deg/s, ``sensordata[gyro_adr:+2]`` in rad/s): the trunk
         inclinometer's and gyroscope's input (humanoid_twin/plant/imu.py)."""
         sd = self._sensordata
-        w = sd[quat_adr]
-        x = sd[quat_adr + 1]
-        y = sd[quat_adr + 2]
-        z = sd[quat_adr + 3]
+        w = float(sd[quat_adr])
+        x = float(sd[quat_adr + 1])
+        y = float(sd[quat_adr + 2])
+        z = float(sd[quat_adr + 3])
         roll = math.atan2(2.0 * (w * x + y * z), 1.0 - 2.0 * (x * x + y * y)) * _DEG
         s = 2.0 * (w * y - z * x)
         pitch = math.asin(-1.0 if s < -1.0 else (1.0 if s > 1.0 else s)) * _DEG
-        return roll, pitch, sd[gyro_adr] * _DEG, sd[gyro_adr + 1] * _DEG
+        return roll, pitch, float(sd[gyro_adr]) * _DEG, float(sd[gyro_adr + 1]) * _DEG
