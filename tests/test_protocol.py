@@ -432,6 +432,31 @@ def test_sensors2_round_trip(src, curr, data4) -> None:
     assert cf.unpack_sensors2(data) == (src, 1, curr, data4)
 
 
+def _packed(pack, *args) -> bytes | str:
+    """A pack function's bytes, or the message of the PayloadError it raised."""
+    try:
+        return pack(*args)
+    except PayloadError as exc:
+        return f"PayloadError: {exc}"
+
+
+# the fields around their ranges: mostly inside, some outside (the errors)
+@given(st.integers(-1, 16), st.lists(st.integers(-130, 130), min_size=6, max_size=6),
+       st.integers(-2, 257), st.integers(-1, 8))
+def test_sensors1_fields_pack_as_pack_sensors1(src, pv, status, flags) -> None:
+    """The Slave's per-tick codec gives pack_sensors1's bytes, or its error, for the same fields."""
+    want = _packed(cf.pack_sensors1, src, tuple(pv[:3]), tuple(pv[3:]), status, flags)
+    assert _packed(cf.pack_sensors1_fields, src, *pv, status, flags) == want
+
+
+@given(st.integers(-1, 16), st.lists(st.integers(-2, 102), min_size=3, max_size=3),
+       st.lists(st.integers(-2, 257), min_size=4, max_size=4), st.booleans())
+def test_sensors2_fields_pack_as_pack_sensors2(src, curr, data4, law_stopped) -> None:
+    """The Slave's per-tick codec gives pack_sensors2's bytes, or its error, for the same fields."""
+    want = _packed(cf.pack_sensors2, src, tuple(curr), tuple(data4), law_stopped)
+    assert _packed(cf.pack_sensors2_fields, src, *curr, *data4, law_stopped) == want
+
+
 def test_payload_byte_layouts() -> None:
     assert cf.pack_actuation1((-1, 0, 70), (100, 0, 5), 0xB9, 7) == bytes.fromhex("FF 00 46 64 00 05 B9 07")
     assert cf.pack_actuation2((1, 2, 3), (4, 5, 6), 7, 8) == bytes(range(1, 9))

@@ -4,6 +4,7 @@ board within one 8 ms round), reset, the serial bytes, and the host's typed erro
 
 from __future__ import annotations
 
+import dataclasses
 import time
 
 import pytest
@@ -77,6 +78,24 @@ def test_silent_slave_and_master_bus_off_detected_within_50ms_safe_and_standing(
         named = f"mode safe, latched fault {sv.FAULT_NAMES[code]}"
         with pytest.raises(drivers.SupervisorRefused, match=named):
             drivers.HumanoidClient(H).set_positions(1, [0, 0, 0])
+
+
+def test_thresholds_are_read_when_a_config_is_set_and_a_config_cannot_change_in_place() -> None:
+    """The supervisor reads its thresholds when it is given a config (the compiled round keeps
+    them as C values): a new config set whole takes effect at the next round, and a config's
+    fields cannot be changed under it (frozen), nor be anything but integers."""
+    twin, H, events = booted()
+    with twin:
+        sup = twin.master.supervisor
+        with pytest.raises(dataclasses.FrozenInstanceError):
+            sup.config.host_link_ms = 100
+        with pytest.raises(ValueError, match="silent_rounds must be an integer"):
+            sv.SupervisorConfig(silent_rounds=2.5)
+        twin.run_for(0.3)                     # no host frame for 300 ms: host_link is off
+        assert sup.mode == sv.READY and not sup.faults
+        sup.config = sv.SupervisorConfig(host_link_ms=100)
+        twin.run_for(0.01)
+        assert sup.mode == sv.SAFE and [f.name for f in sup.faults] == ["host_link"]
 
 
 def test_estop_pwm_off_within_one_round_then_reset_and_power_on_back_to_ready() -> None:

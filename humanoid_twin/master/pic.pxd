@@ -5,6 +5,7 @@ from humanoid_twin.clock cimport Clock
 from humanoid_twin.master.can cimport MasterCan
 from humanoid_twin.cycles cimport cycles_to_us   # the cycles of a timer slot, a C call
 from humanoid_twin.master.database cimport Database
+from humanoid_twin.master.supervisor cimport Supervisor
 
 cdef long long N_SCU   # a C value here (ROUND_US and the other periods stay Python names)
 cdef long long _SLOT_US
@@ -17,8 +18,7 @@ from humanoid_twin.master.usart cimport Usart
 
 cdef class Pic:
     cdef public Clock clock
-    # the Supervisor as a Python object: supervisor.py imports this package's pic.py (ROUND_US)
-    cdef public object supervisor
+    cdef public Supervisor supervisor   # on_round: a C call
     cdef public Usart usart
     cdef public MasterCan can
     cdef public Database db

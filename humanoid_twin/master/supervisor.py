@@ -23,12 +23,11 @@ the actuation packets the schedule already sends).
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 from typing import TYPE_CHECKING, Any, NamedTuple
 
 from humanoid_twin.clock import US_PER_S
 from humanoid_twin.hardware import FOOT_OF_SCU, FORCE_CALIBRATION_VALUE, FORCE_SENSOR_XY_MM, PWM_PERIOD_US
-from humanoid_twin.master.pic import ROUND_US
 from humanoid_twin.protocol.canframes import SFLAGS2_LAW, SFLAGS_CAN_STATE
 from humanoid_twin.protocol.rs232 import PARAM_SPECIAL, SUPERVISOR_FAULTS, SUPERVISOR_MODES, Op
 from humanoid_twin.protocol.wire import (
@@ -44,7 +43,7 @@ from humanoid_twin.slave.data import calcCoP
 if TYPE_CHECKING:
     from humanoid_twin.clock import Clock
     from humanoid_twin.master.can import MasterCan
-    from humanoid_twin.master.database import Database
+    from humanoid_twin.master.database import Database, ScuSensors
 
 __all__ = [
     "STANDBY", "SELF_CHECK", "READY", "SAFE", "ESTOP", "MODE_NAMES",
@@ -81,6 +80,23 @@ _YS = [p[1] for p in FORCE_SENSOR_XY_MM]
 SENSOR_X_MIN, SENSOR_X_MAX = min(_XS), max(_XS)
 SENSOR_Y_MIN, SENSOR_Y_MAX = min(_YS), max(_YS)
 
+# the same facts under private names, C constants of the compiled round (supervisor.pxd; the
+# public names stay Python objects for the modules that import them)
+_STANDBY, _SELF_CHECK, _READY, _SAFE, _ESTOP = STANDBY, SELF_CHECK, READY, SAFE, ESTOP
+_CAN_STATE = SFLAGS_CAN_STATE
+_LAW_STOPPED = SFLAGS2_LAW
+_DEADLINE_BIT = STATUS_DEADLINE
+_PWM_BIT = STATUS_PWM
+_CALIB_BIT = STATUS_CALIB
+_X_MIN, _X_MAX, _Y_MIN, _Y_MAX = SENSOR_X_MIN, SENSOR_X_MAX, SENSOR_Y_MIN, SENSOR_Y_MAX
+_FEET = tuple(FOOT_OF_SCU)               # the leg boards, in FOOT_OF_SCU's order
+_NEVER = -(1 << 62)                      # a hold's start when none runs (no virtual time is this)
+
+
+def _per_node(value: int) -> list[int]:
+    """One ``value`` per node, indexed by its address (0 the Master, 1..8 the Slaves)."""
+    return [value] * len(NODES)
+
 
 def _support_margin(cops: list[tuple[int, int]]) -> float:
     """How far the CoPs of the loaded feet (one or two, mm, foot frames) are inside the edge the
@@ -89,11 +105,24 @@ def _support_margin(cops: list[tuple[int, int]]) -> float:
         return -1.0
     if len(cops) == 1:
         x, y = cops[0]
-        return min(x - SENSOR_X_MIN, SENSOR_X_MAX - x, y - SENSOR_Y_MIN, SENSOR_Y_MAX - y)
-    ys = [y for _, y in cops]
-    front = max([SENSOR_Y_MAX - y for y in ys])
-    back = max([y - SENSOR_Y_MIN for y in ys])
-    return min(front, back)
+        m = x - _X_MIN                   # min() of the four edges' distances, as the builtin
+        m = _min2(m, _X_MAX - x)         # chooses (the first of equals)
+        m = _min2(m, y - _Y_MIN)
+        return _min2(m, _Y_MAX - y)
+    front = back = 0.0                   # max() over the feet of their distances to the edge
+    first = True
+    for _, y in cops:
+        if first or _Y_MAX - y > front:
+            front = _Y_MAX - y
+        if first or y - _Y_MIN > back:
+            back = y - _Y_MIN
+        first = False
+    return _min2(front, back)
+
+
+def _min2(a: float, b: float) -> float:
+    """``min(a, b)``: ``b`` only when it is smaller (the builtin's choice among equals)."""
+    return b if b < a else a
 
 
 class Fault(NamedTuple):
@@ -114,9 +143,11 @@ class Fault(NamedTuple):
                 "node": self.node}
 
 
-@dataclass
+@dataclass(frozen=True)
 class SupervisorConfig:
-    """Detection thresholds (docs/supervisor.md gives the reason for each default)."""
+    """Detection thresholds (docs/supervisor.md gives the reason for each default). Frozen: the
+    supervisor reads the values when it is given the config; another config is set whole
+    (``supervisor.config = SupervisorConfig(...)``)."""
 
     silent_rounds: int = 3           # a board with no packet for this many rounds is silent
     deadline_ticks: int = 5          # deadline bit held for this many Slave ticks
@@ -127,6 +158,10 @@ class SupervisorConfig:
     host_link_ms: int | None = None  # no valid host frame for this long while ready: off (None)
 
     def __post_init__(self) -> None:
+        for f in fields(self):
+            value = getattr(self, f.name)
+            if not (isinstance(value, int) or (value is None and f.name == "host_link_ms")):
+                raise ValueError(f"SupervisorConfig.{f.name} must be an integer, got {value!r}")
         for name in ("silent_rounds", "deadline_ticks", "balance_hold_ms"):
             if getattr(self, name) < 1:
                 raise ValueError(f"SupervisorConfig.{name} must be >= 1, got {getattr(self, name)!r}")
@@ -147,9 +182,14 @@ class Supervisor:
 
     def __init__(self, clock: Clock, db: Database, can: MasterCan,
                  config: SupervisorConfig | None = None) -> None:
+        # ROUND_US here, not at the top: the compiled pic.py types its supervisor as this class,
+        # so this module must not import pic.py while it loads
+        from humanoid_twin.master.pic import ROUND_US
+
         self.clock = clock
         self.db = db
         self.can = can
+        self._round_us = ROUND_US
         self.config = config or SupervisorConfig()
         self.mode = STANDBY
         self.faults: list[Fault] = []
@@ -159,16 +199,35 @@ class Supervisor:
         self.last_host_us = 0
         self._seen: set[tuple[int, int]] = set()
         # per node, indexed by its address (0 the Master, 1..8 the Slaves; the Master's
-        # _packets and _deadline_since entries are unused)
-        self._packets = [0] * len(NODES)
-        self._quiet_rounds = [0] * len(NODES)
+        # _packets and _deadline_since entries are unused); _NEVER: no hold running
+        self._packets = _per_node(0)
+        self._quiet_rounds = _per_node(0)
         self._master_sent = 0
-        self._deadline_since: list[int | None] = [None] * len(NODES)
-        self._balance_since: int | None = None
+        self._deadline_since = _per_node(_NEVER)
+        self._balance_since = _NEVER
         self.reset_refused: str | None = None  # why the last reset was refused (None: it was not)
         # the leg boards' loads before calibration (counts) and the margin they gave (boot falls)
         self._raw_load: dict[int, int] = {k: 0 for k in FOOT_OF_SCU}
         self._raw_margin: float | None = None
+
+    @property
+    def config(self) -> SupervisorConfig:
+        """The detection thresholds; set a new :class:`SupervisorConfig` whole to change them."""
+        return self._config
+
+    @config.setter
+    def config(self, config: SupervisorConfig) -> None:
+        if not isinstance(config, SupervisorConfig):
+            raise TypeError(f"Supervisor.config must be a SupervisorConfig, got {config!r}")
+        self._config = config
+        # the values the rounds compare with, read once (the config is frozen)
+        self._silent_rounds = config.silent_rounds
+        self._deadline_hold_us = (config.deadline_ticks - 1) * PWM_PERIOD_US
+        self._over_travel_deg = config.over_travel_deg
+        self._margin_mm = config.balance_margin_mm
+        self._balance_hold_us = config.balance_hold_ms * 1000
+        self._force_offset = config.balance_calib_load - FORCE_CALIBRATION_VALUE
+        self._host_link_us = -1 if config.host_link_ms is None else config.host_link_ms * 1000
 
     # -- what the host sees -----------------------------------------------------------------------
     @property
@@ -238,8 +297,8 @@ class Supervisor:
         self._seen.clear()
         # the silence counters run on through a reset: a board already quiet is not given
         # a fresh 3-round grace (docs/supervisor.md, "Reset")
-        self._deadline_since[:] = [None] * len(NODES)
-        self._balance_since = None
+        self._deadline_since = _per_node(_NEVER)
+        self._balance_since = _NEVER
         self._set_mode(SELF_CHECK)
         return True
 
@@ -255,7 +314,7 @@ class Supervisor:
         if self.can.drivers.controller.state == _BUS_OFF:
             return "the Master's CAN controller is bus-off (read the CAN status first)"
         quiet = [k for k, s in self.db.sensors.items()
-                 if s.last_rx_us < 0 or now - s.last_rx_us > 2 * ROUND_US]
+                 if s.last_rx_us < 0 or now - s.last_rx_us > 2 * self._round_us]
         if quiet:
             return f"SCU {', '.join(map(str, quiet))} not answering"
         return None
@@ -263,71 +322,71 @@ class Supervisor:
     # -- detection (timer interrupt, end of each CAN round) ------------------------------------
     def on_round(self) -> None:
         """A CAN schedule round closed: check every fault rule, then the self-check."""
-        if self.mode == ESTOP:
+        mode = self.mode
+        if mode == _ESTOP:
             return
         now = self.clock.now_us
-        cfg = self.config
-        db = self.db
         ctl = self.can.drivers.controller
+        silent = self._silent_rounds
         master_down = False
         # the Master's own CAN: bus-off, or nothing of its own got on the wire for N rounds
         if ctl.state == _BUS_OFF:
             self._fault(BUS_OFF_FAULT, 0, now)
             master_down = True
         sent = ctl.frames_sent
-        q = self._quiet_rounds
-        q[0] = q[0] + 1 if sent == self._master_sent else 0
+        quiet = self._quiet_rounds[0] + 1 if sent == self._master_sent else 0
+        self._quiet_rounds[0] = quiet
         self._master_sent = sent
-        if q[0] >= cfg.silent_rounds and not master_down:
+        if quiet >= silent and not master_down:
             self._fault(SILENT, 0, now)
         # a round in which the Master got nothing on the wire says nothing about the Slaves
         # (they only answer the Master's packets): their silence is not counted then
-        master_down = master_down or q[0] >= 1
-        hold_us = (cfg.deadline_ticks - 1) * PWM_PERIOD_US
-        for k, s in db.sensors.items():
+        master_down = master_down or quiet >= 1
+        for k, s in self.db.sensors.items():
             n = s.packets1 + s.packets2
-            if not master_down:
-                q[k] = q[k] + 1 if n == self._packets[k] else 0
-            self._packets[k] = n
             if master_down:
+                self._packets[k] = n
                 continue
+            quiet = self._quiet_rounds[k] + 1 if n == self._packets[k] else 0
+            self._quiet_rounds[k] = quiet
+            self._packets[k] = n
             # silent: a board heard before, or any board once the self-check has started
             # (a board never heard in standby may simply not be fitted: a bench Master)
-            if q[k] >= cfg.silent_rounds and (s.last_rx_us >= 0 or self.mode != STANDBY):
+            if quiet >= silent and (s.last_rx_us >= 0 or self.mode != _STANDBY):
                 self._fault(SILENT, k, now)
                 continue
-            if s.sflags & SFLAGS_CAN_STATE and now - s.last_rx_us <= ROUND_US:   # a fresh report
+            if s.sflags & _CAN_STATE and now - s.last_rx_us <= self._round_us:   # a fresh report
                 self._fault(SLAVE_CAN, k, now)
-            if s.sflags2 & SFLAGS2_LAW:
+            if s.sflags2 & _LAW_STOPPED:
                 self._fault(LAW, k, now)
-            if s.status & STATUS_DEADLINE:
+            if s.status & _DEADLINE_BIT:
                 since = self._deadline_since[k]
-                if since is None:
+                if since == _NEVER:
                     self._deadline_since[k] = s.last_rx_us
-                elif s.last_rx_us - since >= hold_us:
+                elif s.last_rx_us - since >= self._deadline_hold_us:
                     self._fault(DEADLINE, k, now)
             else:
-                self._deadline_since[k] = None
-        if self.mode == READY:
-            lim = cfg.over_travel_deg
-            for k, s in db.sensors.items():
-                if s.status & STATUS_PWM:
+                self._deadline_since[k] = _NEVER
+        if self.mode == _READY:
+            lim = self._over_travel_deg
+            for k, s in self.db.sensors.items():
+                if s.status & _PWM_BIT:
                     for p in s.pos:
                         if p > lim or p < -lim:
                             self._fault(OVER_TRAVEL, k, now)
                             break
             self._check_balance(now)
-            if cfg.host_link_ms is not None and now - self.last_host_us > cfg.host_link_ms * 1000:
+            if self._host_link_us >= 0 and now - self.last_host_us > self._host_link_us:
                 self._fault(HOST_LINK, 0, now)
-        elif self.mode == SELF_CHECK or (self.mode == STANDBY and self.last_host_us > 0):
+        elif self.mode == _SELF_CHECK or (self.mode == _STANDBY and self.last_host_us > 0):
             self._check_fall(now)             # a fall during the boot, once the host has started it
-        if self.mode == SELF_CHECK and self._all_ready(now) and self._balance_since is None:
+        if self.mode == _SELF_CHECK and self._all_ready(now) and self._balance_since == _NEVER:
             self._set_mode(READY)             # (not while a fall is being confirmed, issue 24)
 
     def _all_ready(self, now: int) -> bool:
-        want = STATUS_PWM | STATUS_CALIB
+        want = _PWM_BIT | _CALIB_BIT
         for s in self.db.sensors.values():
-            if s.last_rx_us < 0 or now - s.last_rx_us > 2 * ROUND_US or s.status & want != want:
+            if s.last_rx_us < 0 or now - s.last_rx_us > 2 * self._round_us or s.status & want != want:
                 return False
         return True
 
@@ -336,9 +395,13 @@ class Supervisor:
         on the forces of its last Sensors 2 packet, each taken as ``reading - 128 + calib_load``
         7-bit counts (128: ``hardware.FORCE_CALIBRATION_VALUE``, the reading at the calibrated
         load; as host/cop.py does); None when the foot is unloaded."""
-        offset = self.config.balance_calib_load - FORCE_CALIBRATION_VALUE
-        w = [max(v + offset, 0) for v in self.db.sensors[scu].special]
-        x, y, loaded = calcCoP(w)
+        return self._foot_cop(self.db.sensors[scu])
+
+    def _foot_cop(self, s: ScuSensors) -> tuple[int, int] | None:
+        offset = self._force_offset
+        f0, f1, f2, f3 = s.special
+        x, y, loaded = calcCoP((max(f0 + offset, 0), max(f1 + offset, 0), max(f2 + offset, 0),
+                                max(f3 + offset, 0)))
         return (x, y) if loaded else None
 
     def balance_margin_mm(self) -> float | None:
@@ -350,10 +413,11 @@ class Supervisor:
         the robot only reaches once the other foot is off the ground). -1 with no foot loaded."""
         sensors = self.db.sensors
         cops = []
-        for k in FOOT_OF_SCU:
-            if not sensors[k].status & STATUS_PWM:
+        for k in _FEET:
+            s = sensors[k]
+            if not s.status & _PWM_BIT:
                 return None
-            c = self.foot_cop_mm(k)
+            c = self._foot_cop(s)
             if c is not None:
                 cops.append(c)
         return _support_margin(cops)
@@ -380,7 +444,7 @@ class Supervisor:
             if s.status & STATUS_CALIB:
                 if not s.status & STATUS_PWM:
                     return None
-                c = self.foot_cop_mm(k)
+                c = self._foot_cop(s)
             else:
                 raw = True
                 self._raw_load[k] = sum(s.special)
@@ -409,12 +473,12 @@ class Supervisor:
     def _check_margin(self, m: float | None, now: int) -> None:
         """The balance rule: a margin at or below ``balance_margin_mm`` for ``balance_hold_ms``
         latches the balance fault (None: no margin to judge, the hold starts again)."""
-        if m is None or m > self.config.balance_margin_mm:
-            self._balance_since = None
+        if m is None or m > self._margin_mm:
+            self._balance_since = _NEVER
             return
-        if self._balance_since is None:
+        if self._balance_since == _NEVER:
             self._balance_since = now
-        elif now - self._balance_since >= self.config.balance_hold_ms * 1000:
+        elif now - self._balance_since >= self._balance_hold_us:
             self._fault(BALANCE, 0, now)
 
     # -- bookkeeping -----------------------------------------------------------------------------
@@ -428,7 +492,7 @@ class Supervisor:
         self.latched.append(f)
         for cb in self.listeners:
             cb("fault", now, f)
-        if self.mode != SAFE and self.mode != ESTOP:
+        if self.mode != _SAFE and self.mode != _ESTOP:
             self._set_mode(SAFE)
 
     def _set_mode(self, mode: int) -> None:

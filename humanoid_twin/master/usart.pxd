@@ -4,6 +4,7 @@ cimport cython
 from humanoid_twin.clock cimport Clock
 from humanoid_twin.master.can cimport MasterCan
 from humanoid_twin.master.database cimport Database, MasterCounters, ScuActuation, ScuSensors
+from humanoid_twin.master.supervisor cimport Supervisor
 from humanoid_twin.protocol.rs232 cimport bcc, data_response, invalid_reason, status_response
 from humanoid_twin.protocol.wire cimport from_s8, s8
 
@@ -14,8 +15,7 @@ cdef long long FRAME_LEN, SOF
 
 cdef class Usart:
     cdef public Clock clock
-    # the Supervisor as a Python object: supervisor.py imports this package's pic.py (ROUND_US)
-    cdef public object supervisor
+    cdef public Supervisor supervisor
     cdef public object link
     cdef public Database db
     cdef public MasterCan can

@@ -9,11 +9,16 @@
 # are the source's. Identifiers and bytes that are checked by C comparisons are C longs.
 cimport cython
 
-# C constants of the unpack functions (private aliases; canframes.py)
-cdef long _CAN_STATE, _CAN_STATE_MAX, _SUPERVISOR, _LAW, _CURRENT_MAX
+# C constants of the codecs (private names and aliases; canframes.py)
+cdef long _CAN_STATE, _CAN_STATE_MAX, _SUPERVISOR, _LAW, _CURRENT_MAX, _SF_SHIFT, _SF_INDEX
+cdef long _ADDR_MASK, _SFLAGS_LOW
 cdef tuple _INT8
 
+cdef bint _COMPILED
+
 cpdef bytes _payload(object data, str packet)
+cdef bytes _bytes8(unsigned char b0, unsigned char b1, unsigned char b2, unsigned char b3,
+                   unsigned char b4, unsigned char b5, unsigned char b6, unsigned char b7)
 
 cpdef long can_id(object src, object dst, object index, object op) except? -1
 cpdef tuple split_id(object arbitration_id)
@@ -34,7 +39,11 @@ cpdef tuple unpack_actuation2(object data)
 cpdef bytes pack_sensors1(object src, object pos, object speed, object status, object flags=*)
 @cython.locals(b=bytes, sf=cython.long, i8=tuple)
 cpdef tuple unpack_sensors1(object data)
+cpdef bytes pack_sensors1_fields(long src, long pos1, long pos2, long pos3, long speed1, long speed2,
+                                 long speed3, long status, long flags)
 cpdef tuple supervisor_flags(object data)
 cpdef bytes pack_sensors2(object src, object curr, object data4, object law_stopped=*)
 @cython.locals(b=bytes, c1=cython.long, c2=cython.long, c3=cython.long)
 cpdef tuple unpack_sensors2(object data)
+cpdef bytes pack_sensors2_fields(long src, long curr1, long curr2, long curr3, long data1, long data2,
+                                 long data3, long data4, bint law_stopped)

@@ -37,6 +37,12 @@ from humanoid_twin.protocol.wire import (
     from_s8,
 )
 
+try:        # Cython's pure-Python mode: True in the compiled core (as in clock.py)
+    import cython
+    _COMPILED = cython.compiled
+except ImportError:         # interpreted, Cython not installed
+    _COMPILED = False
+
 if TYPE_CHECKING:  # cantools is imported lazily by load_dbc (it is slow to import)
     import cantools.database
 
@@ -79,8 +85,10 @@ __all__ = [
     "pack_actuation2",
     "unpack_actuation2",
     "pack_sensors1",
+    "pack_sensors1_fields",
     "unpack_sensors1",
     "pack_sensors2",
+    "pack_sensors2_fields",
     "unpack_sensors2",
     "load_dbc",
     "DBC_RESOURCE",
@@ -325,6 +333,22 @@ def _payload(data: bytes | bytearray | memoryview, packet: str) -> bytes:
     return b
 
 
+def _bytes8(b0: int, b1: int, b2: int, b3: int, b4: int, b5: int, b6: int, b7: int) -> bytes:
+    """Eight byte values (0..255) -> 8 bytes (a C buffer copied once in the compiled core)."""
+    if _COMPILED:
+        buf = cython.declare(cython.uchar[8])
+        buf[0] = b0
+        buf[1] = b1
+        buf[2] = b2
+        buf[3] = b3
+        buf[4] = b4
+        buf[5] = b5
+        buf[6] = b6
+        buf[7] = b7
+        return buf[:8]
+    return bytes((b0, b1, b2, b3, b4, b5, b6, b7))
+
+
 def pack_actuation1(refs: Sequence[int], speeds: Sequence[int], control: int, kd3: int) -> bytes:
     """Actuation 1 ``Ref1 Ref2 Ref3 Speed1 Speed2 Speed3 Control KD3`` (slide 20; ``canSendMsg``).
 
@@ -382,6 +406,20 @@ def pack_sensors1(src: int, pos: Sequence[int], speed: Sequence[int], status: in
         raise _pack_error("Sensors1", exc, src=src, pos=pos, speed=speed, status=status) from None
 
 
+def pack_sensors1_fields(src: int, pos1: int, pos2: int, pos3: int, speed1: int, speed2: int, speed3: int,
+                         status: int, flags: int) -> bytes:
+    """:func:`pack_sensors1` on integer fields one by one (the Slave's tick; C integers in the
+    compiled core, no ``struct``): the same bytes; a field out of its range goes through
+    :func:`pack_sensors1`, which raises its ``PayloadError``."""
+    if (0 <= src <= _ADDR_MASK and 0 <= flags <= _SFLAGS_LOW and flags & _CAN_STATE <= _CAN_STATE_MAX
+            and -128 <= pos1 <= 127 and -128 <= pos2 <= 127 and -128 <= pos3 <= 127
+            and -128 <= speed1 <= 127 and -128 <= speed2 <= 127 and -128 <= speed3 <= 127
+            and 0 <= status <= 255):
+        return _bytes8((src << _SF_SHIFT) | flags, pos1 & 0xFF, pos2 & 0xFF, pos3 & 0xFF,
+                       speed1 & 0xFF, speed2 & 0xFF, speed3 & 0xFF, status)
+    return pack_sensors1(src, (pos1, pos2, pos3), (speed1, speed2, speed3), status, flags)
+
+
 def unpack_sensors1(data: bytes) -> tuple[int, int, tuple[int, int, int], tuple[int, int, int], int]:
     """Sensors 1 payload -> ``(src, index, (pos1, pos2, pos3), (speed1, speed2, speed3), status)``
     (``canReceiveMsg`` on the Master). ``PayloadError`` if its index is not 0 or SFlags bits 1-0
@@ -412,6 +450,8 @@ _CAN_STATE_MAX = int(ErrorState.BUS_OFF)
 _SUPERVISOR = SFLAGS_SUPERVISOR
 _LAW = SFLAGS2_LAW
 _CURRENT_MAX = CURRENT_MAX
+_SF_SHIFT = SFLAGS_SOURCE_SHIFT
+_SF_INDEX = SFLAGS_INDEX
 
 
 def supervisor_flags(data: bytes | bytearray) -> tuple[bool, int]:
@@ -437,6 +477,19 @@ def pack_sensors2(src: int, curr: Sequence[int], data4: Sequence[int], law_stopp
         return _SEN2.pack(sf, c1, c2, c3, d1, d2, d3, d4)
     except (struct.error, TypeError, ValueError) as exc:
         raise _pack_error("Sensors2", exc, src=src, curr=curr, data4=data4) from None
+
+
+def pack_sensors2_fields(src: int, curr1: int, curr2: int, curr3: int, data1: int, data2: int, data3: int,
+                         data4: int, law_stopped: bool) -> bytes:
+    """:func:`pack_sensors2` on integer fields one by one (the Slave's tick; C integers in the
+    compiled core, no ``struct``): the same bytes; a field out of its range goes through
+    :func:`pack_sensors2`, which raises its ``PayloadError``."""
+    if (0 <= src <= _ADDR_MASK and 0 <= curr1 <= _CURRENT_MAX and 0 <= curr2 <= _CURRENT_MAX
+            and 0 <= curr3 <= _CURRENT_MAX and 0 <= data1 <= 255 and 0 <= data2 <= 255
+            and 0 <= data3 <= 255 and 0 <= data4 <= 255):
+        return _bytes8((src << _SF_SHIFT) | _SF_INDEX | (_LAW if law_stopped else 0),
+                       curr1, curr2, curr3, data1, data2, data3, data4)
+    return pack_sensors2(src, (curr1, curr2, curr3), (data1, data2, data3, data4), law_stopped)
 
 
 def unpack_sensors2(data: bytes) -> tuple[int, int, tuple[int, int, int], tuple[int, int, int, int]]:

@@ -9,8 +9,8 @@ from humanoid_twin.bus.frames cimport Frame
 from humanoid_twin.bus.network cimport CanController
 from humanoid_twin.clock cimport Clock
 from humanoid_twin.protocol.canframes cimport (
-    pack_sensors1,
-    pack_sensors2,
+    pack_sensors1_fields,
+    pack_sensors2_fields,
     parse_control_byte,
     status_byte,
     unpack_actuation1,
@@ -78,5 +78,6 @@ cdef class SlaveCan:
     @cython.locals(c=CanController)
     cpdef bint checkCan(self) except -1
     @cython.locals(s=Sensors, st=SensorStatus, s0=StructServo, s1=StructServo, s2=StructServo,
-                   status=cython.long, flags=cython.long, c=CanController)
+                   status=cython.long, flags=cython.long, c=CanController, d1=cython.long,
+                   d2=cython.long, d3=cython.long, d4=cython.long)
     cpdef prepareSensorPackets(self)

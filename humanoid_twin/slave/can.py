@@ -31,8 +31,8 @@ from humanoid_twin.protocol.canframes import (
     SENSOR_IDS,
     SFLAGS_WATCHDOG,
     PayloadError,
-    pack_sensors1,
-    pack_sensors2,
+    pack_sensors1_fields,
+    pack_sensors2_fields,
     parse_control_byte,
     slave_filters,
     status_byte,
@@ -267,9 +267,10 @@ class SlaveCan:
             flags |= ErrorState.BUS_OFF
         elif c is not None:
             flags |= c.error_state_code
-        self.payload[0] = pack_sensors1(
-            self.address, (s0.pos, s1.pos, s2.pos), (s0.vel, s1.vel, s2.vel), status, flags,
+        self.payload[0] = pack_sensors1_fields(
+            self.address, s0.pos, s1.pos, s2.pos, s0.vel, s1.vel, s2.vel, status, flags,
         )
-        self.payload[1] = pack_sensors2(
-            self.address, (s0.current, s1.current, s2.current), s.special, self.law_stopped
+        d1, d2, d3, d4 = s.special
+        self.payload[1] = pack_sensors2_fields(
+            self.address, s0.current, s1.current, s2.current, d1, d2, d3, d4, self.law_stopped
         )

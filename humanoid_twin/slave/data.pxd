@@ -6,7 +6,9 @@ cimport cython
 
 cpdef long long divround(long long n, long long d) except? -1
 @cython.locals(f0=cython.long, f1=cython.long, f2=cython.long, f3=cython.long, total=cython.long,
-               xs=tuple, ys=tuple, den=cython.long, x=cython.long, y=cython.long)
+               x0=cython.long, x1=cython.long, x2=cython.long, x3=cython.long, y0=cython.long,
+               y1=cython.long, y2=cython.long, y3=cython.long, den=cython.long, x=cython.long,
+               y=cython.long)
 cpdef tuple calcCoP(object forces)
 cpdef long long _cdiv100(long long n) except? -1
 @cython.locals(s0=cython.long, s1=cython.long, s2=cython.long, a=cython.long, b=cython.long,

@@ -68,11 +68,11 @@ def calcCoP(forces: Sequence[int]) -> tuple[int, int, bool]:
     total = f0 + f1 + f2 + f3
     if total < COP_MIN_LOAD:
         return 0, 0, False
-    xs = SENSOR_X_TENTHS
-    ys = SENSOR_Y_TENTHS
+    x0, x1, x2, x3 = SENSOR_X_TENTHS
+    y0, y1, y2, y3 = SENSOR_Y_TENTHS
     den = 10 * total
-    x = divround(f0 * xs[0] + f1 * xs[1] + f2 * xs[2] + f3 * xs[3], den)
-    y = divround(f0 * ys[0] + f1 * ys[1] + f2 * ys[2] + f3 * ys[3], den)
+    x = divround(f0 * x0 + f1 * x1 + f2 * x2 + f3 * x3, den)
+    y = divround(f0 * y0 + f1 * y1 + f2 * y2 + f3 * y3, den)
     return x, y, True
 
 

@@ -21,6 +21,8 @@ cdef long long VELOCITY_MIN
 cdef long long _V_MAX16
 
 cpdef tuple balance_gain(object control)
+@cython.locals(out=list, j=cython.long)
+cdef object _plain_output(object values, object servos, object lo, object hi)
 cpdef long long calibration_b(long pos_master, long long adc_sum, long n=*) except? -1
 cpdef long long force_offset(long long sum7, long n=*) except? -1
 

@@ -117,6 +117,23 @@ def force_offset(sum7: int, n: int = CALIB_SAMPLES) -> int:
     return FORCE_CALIBRATION_VALUE - divround(sum7, n)
 
 
+def _plain_output(values: Any, servos: Sequence[int], lo: int, hi: int) -> tuple[int, ...] | None:
+    """What ``law_output`` returns for a plain good output (a ``list`` or ``tuple`` of
+    :data:`N_SERVOS` values, ``int`` s within ``lo..hi`` for ``servos``): the values as a tuple;
+    None for anything else, which ``law_output`` then judges (its guards and reasons). Nothing
+    here can run a law's code: the built-in list and tuple, exact ints."""
+    kind = type(values)
+    if (kind is not list and kind is not tuple) or len(values) != N_SERVOS:
+        return None
+    out = [0] * N_SERVOS
+    for j in servos:
+        v = values[j]
+        if type(v) is not int or not lo <= v <= hi:
+            return None
+        out[j] = v
+    return tuple(out)
+
+
 class Calibration:
     """``calibration`` (table 8) as a per-tick state machine, the manual's two lists literally.
 
@@ -384,6 +401,9 @@ class ServoControl:
             return None
         position = law.output == POSITION
         lo, hi = (-POS_LIMIT_DEG, POS_LIMIT_DEG) if position else (VELOCITY_MIN, VELOCITY_MAX)
+        checked = _plain_output(values, inp.servos, lo, hi)
+        if checked is not None:
+            return checked
         what = "position (degrees)" if position else "velocity (1/65536 degree per tick)"
         checked, why = law_output(values, inp.servos, N_SERVOS, lo, hi, what)
         if why is not None:
