@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from functools import partial
 
 from humanoid_twin.clock import US_PER_S
 from humanoid_twin.hardware import FOOT_OF_SCU, PWM_PERIOD_US
@@ -73,7 +74,7 @@ class Monitor:
         self.twin.every(SAMPLE_PERIOD_US, self.sample)
         for scu, foot in FOOT_OF_SCU.items():
             first = self.twin.slaves[scu].next_tick_us()
-            self.twin.every(SAMPLE_PERIOD_US, lambda scu=scu, foot=foot: self.compare_cop(scu, foot), first)
+            self.twin.every(SAMPLE_PERIOD_US, partial(self.compare_cop, scu, foot), first)
 
     def sample(self) -> None:
         """One 20 ms sample of the truth (after the boards' ticks at this instant)."""
@@ -117,8 +118,9 @@ class Monitor:
         truth = twin.plant.foot_cop_mm(foot)
         if truth is None:
             return
-        dx = slave.cop_x - truth[0]
-        dy = slave.cop_y - truth[1]
+        tx, ty = truth.tolist()
+        dx = slave.cop_x - tx
+        dy = slave.cop_y - ty
         self._cop_err_sq += dx * dx + dy * dy
         self._cop_err_n += 1
 

@@ -23,19 +23,21 @@ def convex_hull(points: Sequence[Sequence[float]]) -> list[Point]:
     if len(pts) <= 2:
         return pts
     hull: list[Point] = []
-    for chain_pts in (pts, pts[::-1]):        # the lower chain, then the upper one
-        chain: list[Point] = []
-        for p in chain_pts:
+    for seq in (pts, pts[::-1]):              # the lower chain, then the upper one
+        # the chain's last two points o, a kept in locals; its first two are always taken
+        chain = seq[:2]
+        (ox, oy), (ax, ay) = chain
+        for p in seq[2:]:
             bx, by = p
-            while len(chain) >= 2:
-                ox, oy = chain[-2]
-                ax, ay = chain[-1]
-                # o -> a -> b does not turn left (the cross product of o->a and o->b): drop a
-                if (ax - ox) * (by - oy) - (ay - oy) * (bx - ox) <= 0:
-                    chain.pop()
-                else:
+            # o -> a -> b does not turn left (the cross product of o->a and o->b): drop a
+            while (ax - ox) * (by - oy) - (ay - oy) * (bx - ox) <= 0:
+                chain.pop()
+                ax, ay = ox, oy
+                if len(chain) < 2:
                     break
+                ox, oy = chain[-2]
             chain.append(p)
+            ox, oy, ax, ay = ax, ay, bx, by
         hull += chain[:-1]
     return hull
 
@@ -54,13 +56,17 @@ def signed_distance(point: Sequence[float], hull: Sequence[Point]) -> float:
     if n == 1:
         return -math.hypot(px - hull[0][0], py - hull[0][1])
     # the edges (a, b) of the polygon, the closing one first; a segment's one edge
-    edges = ((hull[0], hull[1]),) if n == 2 else zip((hull[-1], *hull[:-1]), hull, strict=True)
+    if n == 2:
+        (ax, ay), verts = hull[0], hull[1:]
+    else:
+        ax, ay = hull[-1]
+        verts = hull
     inside = True
     nearest = math.inf
-    for (ax, ay), (bx, by) in edges:
+    for bx, by in verts:
         ex, ey = bx - ax, by - ay
         # left of every edge of a counter-clockwise polygon = inside
-        if ex * (py - ay) - ey * (px - ax) < 0.0:
+        if inside and ex * (py - ay) - ey * (px - ax) < 0.0:
             inside = False
         # the distance to the segment: to its point nearest to p
         den = ex * ex + ey * ey
@@ -70,8 +76,9 @@ def signed_distance(point: Sequence[float], hull: Sequence[Point]) -> float:
             t = t if t < 1.0 else 1.0
             t = t if t > 0.0 else 0.0
         dist = math.hypot(px - (ax + t * ex), py - (ay + t * ey))
-        if n == 2:
-            return -dist
         if dist < nearest:
             nearest = dist
+        ax, ay = bx, by
+    if n == 2:
+        return -dist
     return nearest if inside else -nearest

@@ -154,17 +154,24 @@ class TruthProbe:
         self._pad_list = pad_list
         self.joint_names = joint_names
         self.joint_qadr = joint_qadr
+        self._qadr = [int(a) for a in joint_qadr]
         self._force6 = np.zeros(6)
         self._pyramidal = model.opt.cone == mujoco.mjtCone.mjCONE_PYRAMIDAL
+        # every contact has dim 3 when every geom has condim 3 (no explicit pairs, no flexes):
+        # then the contacts' dims need not be read
+        self._all_dim3 = (model.npair == 0 and model.nflex == 0
+                          and bool((model.geom_condim == 3).all()))
 
     def compute(self, t_us: int, platform_tilt_deg: float) -> GroundTruth:
         """The ground truth of the data now (physics time ``t_us``, the platform at
         ``platform_tilt_deg``)."""
         d = self.data
+        xpos = d.xpos[self.trunk].tolist()
+        xmat = d.xmat[self.trunk].tolist()
         # the trunk z axis' vertical component: element (2, 2) of the trunk's rotation matrix
-        tilt = math.degrees(math.acos(max(-1.0, min(1.0, float(d.xmat[self.trunk, 8])))))
-        height = float(d.xpos[self.trunk, 2])
-        fell = self.fallen(tilt, platform_tilt_deg)
+        tilt = math.degrees(math.acos(max(-1.0, min(1.0, xmat[8]))))
+        height = xpos[2]
+        fell = _fallen(xpos, xmat, tilt, platform_tilt_deg)
 
         pids, fns, pts = self.loaded_contacts()
         pad_f = [0.0] * 8
@@ -183,8 +190,8 @@ class TruthProbe:
             cop_xy = None
             margin = -math.inf
         # what the other fields need, copied now (one copy each); they are derived on first read
-        com = d.subtree_com[self.trunk].copy()
-        qpos = d.qpos[self.joint_qadr]
+        com = d.subtree_com[self.trunk].tolist()
+        qpos = d.qpos.tolist()
         site_pos = d.site_xpos
         site_mat = d.site_xmat
         soles = [(site_pos[s].tolist(), site_mat[s].tolist()) for s in self.sole_sites]
@@ -192,7 +199,8 @@ class TruthProbe:
         def derive() -> tuple[np.ndarray, dict[str, float], PlainTruth]:
             cops = [_foot_cop(f, pids, fns, pts, foot_tot[f], *soles[f])
                     if foot_tot[f] > C.LOADED_MIN_N else None for f in range(len(FOOT_BODIES))]
-            return (com, dict(zip(self.joint_names, (qpos * _DEG_PER_RAD).tolist(), strict=True)),
+            return (np.array(com), dict(zip(self.joint_names, [qpos[a] * _DEG_PER_RAD for a in self._qadr],
+                                            strict=True)),
                     PlainTruth(pad_f, cops, cop_xy, hull))
 
         return GroundTruth(t_us / US_PER_S, tilt, height, margin, total, fell, derive)
@@ -204,16 +212,7 @@ class TruthProbe:
         platform's normal (``tilt_deg``: the trunk's from the vertical). A robot upright on a
         tilted platform, or whose feet slide down it, has not fallen."""
         d = self.data
-        s, c = math.sin(math.radians(platform_tilt_deg)), math.cos(math.radians(platform_tilt_deg))
-        t = self.trunk
-        # the platform's normal is (-sin, 0, cos) (toes up positive); its top face passes through 0
-        height = -s * float(d.xpos[t, 0]) + c * float(d.xpos[t, 2])
-        if height < C.FELL_HEIGHT_M:
-            return True
-        if tilt_deg <= C.FELL_TILT_DEG:
-            return False
-        cos_n = -s * float(d.xmat[t, 2]) + c * float(d.xmat[t, 8])
-        return math.degrees(math.acos(max(-1.0, min(1.0, cos_n)))) > C.FELL_TILT_DEG
+        return _fallen(d.xpos[self.trunk].tolist(), d.xmat[self.trunk].tolist(), tilt_deg, platform_tilt_deg)
 
     def soles_on_surface_mm(self, platform_tilt_deg: float) -> tuple[tuple[float, float, float],
                                                                   tuple[float, float, float]]:
@@ -245,12 +244,12 @@ class TruthProbe:
         pad = self._pad_list
         geoms = con.geom.tolist()
         adrs = con.efc_address.tolist()
-        dims = con.dim.tolist()
+        dims = None if self._all_dim3 else con.dim.tolist()
         pos = con.pos.tolist()
         ef: list[float] | None = None
         pyramidal = self._pyramidal
-        for c in range(n):
-            g0, g1 = geoms[c]
+        edges = pyramidal and dims is None   # every contact's normal force: its 4 edge forces
+        for c, (g0, g1) in enumerate(geoms):
             p = pad[g0]
             q = pad[g1]
             if q > p:
@@ -258,7 +257,7 @@ class TruthProbe:
             a = adrs[c]
             if p < 0 or a < 0 or (foot >= 0 and p >> 2 != foot):
                 continue
-            if pyramidal and dims[c] == 3:
+            if edges or (pyramidal and dims[c] == 3):  # type: ignore[index]
                 # pyramidal cone: the normal force is the sum of the pyramid's edge forces
                 if ef is None:
                     ef = d.efc_force.tolist()
@@ -281,6 +280,19 @@ class TruthProbe:
         s = self.sole_sites[f]
         d = self.data
         return np.array(_foot_cop(f, pids, fns, pts, tot, d.site_xpos[s].tolist(), d.site_xmat[s].tolist()))
+
+
+def _fallen(xpos: list[float], xmat: list[float], tilt_deg: float, platform_tilt_deg: float) -> bool:
+    """:meth:`TruthProbe.fallen` from the trunk's world position and rotation matrix (row-major)."""
+    s, c = math.sin(math.radians(platform_tilt_deg)), math.cos(math.radians(platform_tilt_deg))
+    # the platform's normal is (-sin, 0, cos) (toes up positive); its top face passes through 0
+    height = -s * xpos[0] + c * xpos[2]
+    if height < C.FELL_HEIGHT_M:
+        return True
+    if tilt_deg <= C.FELL_TILT_DEG:
+        return False
+    cos_n = -s * xmat[2] + c * xmat[8]
+    return math.degrees(math.acos(max(-1.0, min(1.0, cos_n)))) > C.FELL_TILT_DEG
 
 
 def _foot_cop(f: int, pids: list[int], fns: list[float], pts: list[list[float]], total: float,
