@@ -174,8 +174,8 @@ class Clock:
         """Run ``callback`` every ``period_us``, first at ``first_us`` (default: one period from now).
         After each call the next one is scheduled (a new sequence number); a callback that raises
         is not called again."""
-        if period_us <= 0:
-            raise ValueError("period must be positive")
+        if type(period_us) is not int or period_us <= 0:
+            raise ValueError(f"period must be a positive int of microseconds, got {period_us!r}")
         due = self.now_us + period_us if first_us is None else first_us
         if due < self.now_us:
             raise ValueError(f"cannot schedule in the past: {due} < {self.now_us}")

@@ -91,6 +91,10 @@ def test_thresholds_are_read_when_a_config_is_set_and_a_config_cannot_change_in_
             sup.config.host_link_ms = 100
         with pytest.raises(ValueError, match="silent_rounds must be an integer"):
             sv.SupervisorConfig(silent_rounds=2.5)
+        with pytest.raises(ValueError, match="silent_rounds must be an integer"):
+            sv.SupervisorConfig(silent_rounds=True)
+        with pytest.raises(ValueError, match="balance_hold_ms must be an integer within"):
+            sv.SupervisorConfig(balance_hold_ms=10**16)     # past a C long long in us
         twin.run_for(0.3)                     # no host frame for 300 ms: host_link is off
         assert sup.mode == sv.READY and not sup.faults
         sup.config = sv.SupervisorConfig(host_link_ms=100)

@@ -143,6 +143,11 @@ class Fault(NamedTuple):
                 "node": self.node}
 
 
+# the largest threshold a config takes: 10**12 (ms: 31 years; the compiled supervisor keeps them,
+# in us, as C long long)
+_THRESHOLD_MAX = 10**12
+
+
 @dataclass(frozen=True)
 class SupervisorConfig:
     """Detection thresholds (docs/supervisor.md gives the reason for each default). Frozen: the
@@ -160,8 +165,11 @@ class SupervisorConfig:
     def __post_init__(self) -> None:
         for f in fields(self):
             value = getattr(self, f.name)
-            if not (isinstance(value, int) or (value is None and f.name == "host_link_ms")):
-                raise ValueError(f"SupervisorConfig.{f.name} must be an integer, got {value!r}")
+            if value is None and f.name == "host_link_ms":
+                continue
+            if type(value) is not int or not -_THRESHOLD_MAX <= value <= _THRESHOLD_MAX:
+                raise ValueError(f"SupervisorConfig.{f.name} must be an integer within "
+                                 f"+-{_THRESHOLD_MAX}, got {value!r}")
         for name in ("silent_rounds", "deadline_ticks", "balance_hold_ms"):
             if getattr(self, name) < 1:
                 raise ValueError(f"SupervisorConfig.{name} must be >= 1, got {getattr(self, name)!r}")

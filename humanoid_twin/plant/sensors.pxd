@@ -12,7 +12,7 @@ cdef long _CURRENT_IDLE_US
 cdef long _FORCE_ADC_MAX
 
 @cython.locals(a=cython.double, r=cython.long, d=cython.double)
-cpdef long round_half_even(double x) noexcept
+cpdef long round_half_even(double x) except? -1
 
 cdef class SensorFrontEnd:
     cdef const double[::1] _qpos

@@ -41,8 +41,10 @@ _FORCE_ADC_MAX = hardware.FORCE_ADC_MAX
 def round_half_even(x: float) -> int:
     """``round(x)`` as Python does it (to nearest, ties to even), on C doubles in the compiled core
     (the builtin costs a Python call there; interpreted, the callers use the builtin itself).
-    ``|x| < 2**52``: ``a - int(a)`` is then exact."""
+    Below ``2**52`` ``a - int(a)`` is exact; beyond, and for inf and NaN, the builtin decides."""
     a = -x if x < 0.0 else x
+    if not a < 4503599627370496.0:       # 2**52, inf, NaN: the builtin (its value or its error)
+        return round(x)
     r = int(a)
     d = a - r
     if d > 0.5 or (d == 0.5 and r & 1):

@@ -20,9 +20,9 @@ import numpy as np
 from humanoid_twin.clock import US_PER_S
 from humanoid_twin.plant import constants as C  # noqa: N812
 from humanoid_twin.plant.geometry import convex_hull, signed_distance
+from humanoid_twin.plant.sensors import DEG_PER_RAD as _DEG_PER_RAD
 
 FOOT_BODIES: tuple[str, str] = ("r_foot", "l_foot")
-_DEG_PER_RAD = 180.0 / math.pi
 
 
 class PlainTruth(NamedTuple):

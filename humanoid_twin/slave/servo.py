@@ -120,13 +120,16 @@ def force_offset(sum7: int, n: int = CALIB_SAMPLES) -> int:
 def _plain_output(values: Any, servos: Sequence[int], lo: int, hi: int) -> tuple[int, ...] | None:
     """What ``law_output`` returns for a plain good output (a ``list`` or ``tuple`` of
     :data:`N_SERVOS` values, ``int`` s within ``lo..hi`` for ``servos``): the values as a tuple;
-    None for anything else, which ``law_output`` then judges (its guards and reasons). Nothing
-    here can run a law's code: the built-in list and tuple, exact ints."""
+    None for anything else, which ``law_output`` then judges (its guards and reasons), also when
+    ``servos`` (the law's inputs, which a law may replace) is not indices 0..2. Nothing here can
+    run a law's code: the built-in list and tuple, exact ints."""
     kind = type(values)
     if (kind is not list and kind is not tuple) or len(values) != N_SERVOS:
         return None
     out = [0] * N_SERVOS
     for j in servos:
+        if type(j) is not int or not 0 <= j < N_SERVOS:    # inp.servos is the law's object too
+            return None
         v = values[j]
         if type(v) is not int or not lo <= v <= hi:
             return None
