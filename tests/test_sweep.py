@@ -197,7 +197,9 @@ def test_a_run_past_the_timeout_is_a_row_with_its_error(tmp_path, capsys):
 @pytest.mark.slow
 def test_sigterm_keeps_the_finished_runs_and_a_rerun_resumes(tmp_path):
     out = tmp_path / "t.csv"
-    argv = RUN + ["sweep", "stand", "--param", "tilt=0,1,2", "--duration", "10", "--jobs", "1",
+    # six runs of 20 simulated s: the signal must find the sweep still running after its first
+    # run (with three of 10 s the compiled twin could finish the rest before it arrived)
+    argv = RUN + ["sweep", "stand", "--param", "tilt=0,1,2,3,4,5", "--duration", "20", "--jobs", "1",
                   "--out", str(out)]
     proc = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
@@ -213,11 +215,11 @@ def test_sigterm_keeps_the_finished_runs_and_a_rerun_resumes(tmp_path):
             proc.wait()
     assert proc.returncode == 143 and "terminated" in err
     done = _rows(out)
-    assert 1 <= len(done) < 3 and all(r["error"] == "" for r in done)
+    assert 1 <= len(done) < 6 and all(r["error"] == "" for r in done)
     assert [p.name for p in tmp_path.iterdir()] == ["t.csv"]    # no temporary file left behind
-    rerun = subprocess.run(argv, capture_output=True, text=True, timeout=120)
-    assert rerun.returncode == 0 and f"{len(done)} of 3 runs already in" in rerun.stderr
-    assert _rows(out)[:len(done)] == done and len(_rows(out)) == 3
+    rerun = subprocess.run(argv, capture_output=True, text=True, timeout=180)
+    assert rerun.returncode == 0 and f"{len(done)} of 6 runs already in" in rerun.stderr
+    assert _rows(out)[:len(done)] == done and len(_rows(out)) == 6
 
 
 def _listening(pids: set[int]) -> set[str]:
