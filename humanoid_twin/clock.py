@@ -232,27 +232,26 @@ class Clock:
         n = 0
         outer = self._until
         self._until = t_us if t_us < outer or outer < 0 else outer
+        queue = self._queue
         try:
-            if _COMPILED:
-                while self._n > 0 and self._t[0] <= t_us:
+            while True:
+                # the earliest event due by t_us, taken off the queue (its layout: the class doc)
+                if _COMPILED:
+                    if self._n == 0 or self._t[0] > t_us:
+                        break
                     t = self._t[0]
                     period = self._p[0]
                     cb = self._cb[0]
                     self._pop()
-                    self.now_us = t
-                    cb()
-                    n += 1
-                    if period:
-                        self._push(t + period, period, cb)
-            else:
-                queue = self._queue
-                while queue and queue[0][0] <= t_us:
+                else:
+                    if not queue or queue[0][0] > t_us:
+                        break
                     t, _, period, cb = _heappop(queue)
-                    self.now_us = t
-                    cb()
-                    n += 1
-                    if period:
-                        self._push(t + period, period, cb)
+                self.now_us = t
+                cb()
+                n += 1
+                if period:
+                    self._push(t + period, period, cb)
         finally:
             self._until = outer
         self.events_run += n
