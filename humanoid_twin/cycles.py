@@ -27,6 +27,7 @@ __all__ = [
     "SLAVE",
     "MASTER",
     "LAW",
+    "LAW_CYCLES_MAX",
     "instructions_per_s",
     "cycles_to_us",
     "check_pic_mhz",
@@ -41,6 +42,8 @@ DEFAULT_PIC_MHZ = 40.0
 CLOCKS_PER_CYCLE = 4          # Fosc/4: one instruction cycle (DS41159, "Instruction cycle")
 PIC_MHZ_MIN = 0.032           # the 32 kHz Timer1 oscillator, the slowest clock a PIC18 runs on
 PIC_MHZ_MAX = 40.0            # DS41159: Fosc max 40 MHz
+LAW_CYCLES_MAX = 2**31 - 1    # a law's declared cost per call: at most ~215 s at 10 MIPS (the
+                              # boards' cycle counts stay far inside a C long long of microseconds)
 
 # Instruction cycles per call, Slave firmware (seed 000 section 3). The estimates, their sources
 # (PIC18 instruction timings, the C compiler's arithmetic routines) and the work each function
@@ -102,15 +105,16 @@ def check_pic_mhz(value: float) -> float:
 def law_cycles(law: Any, ctype: int) -> tuple[int, bool]:
     """``(cycles per call, declared)`` of a control law: its ``cycles`` (an int, or a method
     called with no arguments that returns one), else the built-in law of control type ``ctype``
-    (``declared`` False). A declared cost that is not a non-negative int raises ValueError."""
+    (``declared`` False). A declared cost that is not an int in 0..``LAW_CYCLES_MAX`` raises
+    ValueError."""
     c = getattr(law, "cycles", None)
     if callable(c):
         c = c()
     if c is None:
         return LAW.get(ctype, LAW[3]), False
-    if isinstance(c, bool) or not isinstance(c, int) or c < 0:
-        raise ValueError(f"a law's cycles must be a non-negative int (instruction cycles per call), "
-                         f"got {c!r}")
+    if isinstance(c, bool) or not isinstance(c, int) or not 0 <= c <= LAW_CYCLES_MAX:
+        raise ValueError(f"a law's cycles must be a non-negative int up to {LAW_CYCLES_MAX} "
+                         f"(instruction cycles per call), got {c!r}")
     return c, True
 
 

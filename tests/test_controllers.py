@@ -41,6 +41,10 @@ class Pricey(ControlLaw):
     cycles = "a lot"
 
 
+class Priceless(ControlLaw):
+    cycles = 10**13          # more than a board's C arithmetic of microseconds would hold
+
+
 class Sulky(ControlLaw):
     def cycles(self):
         raise RuntimeError("ask me later")
@@ -118,6 +122,7 @@ def test_bad_law_options_are_usage_errors_before_anything_is_written(user_pkg, c
 
 
 @pytest.mark.parametrize("law, msg", [("Pricey", "cycles must be a non-negative int"),
+                                      ("Priceless", "up to 2147483647"),
                                       ("Sulky", "RuntimeError: ask me later")])
 @pytest.mark.parametrize("cmd", [["run", "stand", "--no-record"], ["serve", "--tcp", "0"]])
 def test_a_law_with_a_bad_cost_is_a_usage_error_in_run_and_serve(user_pkg, capsys, tmp_path, cmd, law, msg):
