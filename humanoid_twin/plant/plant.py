@@ -7,9 +7,11 @@ every number; docs/model.md). Ground truth (for recording and tests) is computed
 ``plant/truth.py``, the drawing geometry and the viewer window in ``plant/drawing.py``; the
 :class:`Plant` syncs its physics to its clock before it hands either out.
 
-Hot paths (``set_pwm``, ``read_servos``, ``read_force_adc``, ``advance_to``) are called about
-1200 times per simulated second: they use precomputed addresses, plain Python ints and floats,
-and pre-drawn noise; ``advance_to`` runs all the physics steps due in one ``mj_step`` call.
+The boards' reads (``read_servos``, ``read_force_adc``, ``read_imu_adc``, about 550 times per
+simulated second) and the physics sync before them (``advance_to``) are compiled: they are
+inherited from :class:`~humanoid_twin.plant.sensors.BoardIO` (plant/sensors.py), and use
+precomputed addresses and pre-drawn noise; ``advance_to`` runs all the physics steps due in one
+``mj_step`` call.
 """
 
 from __future__ import annotations
@@ -17,7 +19,6 @@ from __future__ import annotations
 import math
 import numbers
 import sys
-import time
 from collections.abc import Callable, Sequence
 from importlib import resources
 from pathlib import Path
@@ -32,9 +33,9 @@ from humanoid_twin.plant import constants as C  # noqa: N812
 from humanoid_twin.plant.drawing import WXYZ_TO_XYZW, Drawing, GeomInfo, ViewerWindow  # noqa: F401 (recorder)
 from humanoid_twin.plant.imu import TrunkImu
 from humanoid_twin.plant.sensors import DEG_PER_RAD as _DEG_PER_RAD
-from humanoid_twin.plant.sensors import SensorFrontEnd
+from humanoid_twin.plant.sensors import BoardIO, PlantError, PlantInputError, SensorFrontEnd, _check_scu  # noqa: F401 (re-exported)
 from humanoid_twin.plant.truth import FOOT_BODIES, GroundTruth, TruthProbe
-from humanoid_twin.protocol.wire import N_SCU, POS_LIMIT_DEG, check_scu
+from humanoid_twin.protocol.wire import N_SCU, POS_LIMIT_DEG
 
 # The model ships inside the package (MuJoCo Menagerie / dm_control style) and is read with
 # importlib.resources, so `pip install .` (a wheel), `pip install -e .` and a source tree all load
@@ -47,19 +48,6 @@ PAD_SUFFIXES: tuple[str, str, str, str] = ("fl", "fr", "rl", "rr")   # table 12 
 TILT_MAX_DEG = 45.0                # the platform tilts at most this far (either way)
 _TILT_MAX_DEG = TILT_MAX_DEG
 _TILT_PROFILE_CHUNK_US = 10_000    # a tilt profile is re-evaluated at least every 10 ms
-_NOISE_BLOCK = 8192
-
-
-class PlantError(Exception):
-    """The model cannot be loaded or does not match what the boards expect."""
-
-
-class PlantInputError(PlantError, ValueError):
-    """A caller passed an invalid argument (SCU address, pulse width, tilt, ...)."""
-
-
-def _check_scu(scu: int) -> None:
-    check_scu(scu, error=PlantInputError)
 
 
 def model_assets() -> dict[str, bytes]:
@@ -98,7 +86,7 @@ def _load_model(path: Path | None) -> tuple[mujoco.MjModel, list[str]]:
     return model, warnings
 
 
-class Plant:
+class Plant(BoardIO):
     """The MuJoCo robot as the Slave boards see it (servo cables and foot sensors).
 
     ``Plant()`` loads the packaged ``humanoid_twin/models/scene.xml`` and resets to the ``stand``
@@ -246,31 +234,8 @@ class Plant:
         """The clock that owns physics time (None: stepped only by explicit ``advance_to``)."""
         return self._clock
 
-    def _sync(self) -> None:
-        """Run the physics due up to the bound clock's now (nothing without a clock)."""
-        c = self._clock
-        if c is not None and c.now_us - self.t_us >= self.timestep_us:
-            self.advance_to(c.now_us)
-
-    def advance_to(self, t_us: int) -> None:
-        """Run the physics steps due up to ``t_us`` (never past it) in one ``mj_step`` call.
-
-        The platform tilt profile, if any, is evaluated on a fixed 10 ms grid of physics time
-        (the tilt of ``[g, g + 10 ms)`` is ``fn(g)``), so where the callers split the stepping
-        (a recorder, a monitor) does not change the physics.
-        """
-        due = t_us - self.t_us
-        if due < 0:
-            raise PlantInputError(f"cannot advance the plant backwards: {t_us} us < {self.t_us} us")
-        k = due // self.timestep_us
-        if k <= 0:
-            return
-        w0 = time.perf_counter_ns()
-        if self._tilt_profile is None:
-            mujoco.mj_step(self.model, self.data, nstep=k)
-            self.t_us += k * self.timestep_us
-            self.step_ns_total += time.perf_counter_ns() - w0
-            return
+    def _advance_with_profile(self, k: int) -> None:
+        """``advance_to``'s ``k`` steps under a tilt profile: on its 10 ms grid of physics time."""
         grid = _TILT_PROFILE_CHUNK_US
         ts = self.timestep_us
         while k > 0:
@@ -282,7 +247,6 @@ class Plant:
             mujoco.mj_step(self.model, self.data, nstep=n)
             self.t_us += n * ts
             k -= n
-        self.step_ns_total += time.perf_counter_ns() - w0
 
     # --- the platform -----------------------------------------------------------------------------
     def set_tilt_deg(self, deg: float) -> None:
@@ -364,52 +328,6 @@ class Plant:
             ctrl[a] = sign * (p - hardware.PULSE_CENTER_US) * _RAD_PER_US
             if not powered[a]:
                 self._set_powered(a, True)
-
-    def read_servos(self, scu: int) -> tuple[list[int], list[int]]:
-        """Potentiometer ADC counts and current pulse widths (us) of the three servos of ``scu``.
-
-        Pot: ADC = round((b_true - servo_deg) * POT_COUNTS_PER_DEG + noise), clamped 0..1023,
-        i.e. the manual's pos = b - m * ADC (PIC2 ``updateServoMeasures``). Current: width =
-        CURRENT_PULSE_FULL_US * min(1, |motor torque| / stall) + idle when powered, where the
-        motor torque is the actuator force minus the back-EMF damping term; 0 when PWM is off.
-        """
-        self._sync()
-        rows = self._servo.get(scu) if type(scu) is int else None
-        if rows is None:
-            _check_scu(scu)
-        noise = self._pot_noise
-        if len(noise) < 3:
-            noise.extend(self._pot_rng.normal(0.0, C.POT_NOISE_STD_COUNTS, _NOISE_BLOCK).tolist())
-        return self._sense.servos(rows, self.pot_b_true_deg[scu], self._powered, noise)
-
-    def read_force_adc(self, scu: int) -> list[int]:
-        """The four force sensors of the foot of ``scu`` as 8-bit ADC values (table 12 order).
-
-        ADC = clamp(round(F / FORCE_N_PER_COUNT + noise), 0, 255), F the pad's touch-sensor
-        normal force; an unloaded sensor reads 0. Boards without a foot read [0, 0, 0, 0]
-        (PIC2 ``sampleExtraSensors`` input).
-        """
-        self._sync()
-        adrs = self._foot_touch_of_scu.get(scu) if type(scu) is int else None
-        if adrs is None:
-            _check_scu(scu)
-            return [0, 0, 0, 0]
-        noise = self._force_noise
-        if len(noise) < 4:
-            noise.extend(self._force_rng.normal(0.0, C.FORCE_NOISE_STD_COUNTS, _NOISE_BLOCK).tolist())
-        out = self._sense.forces(adrs, noise)
-        if self._force_fault:
-            return self._faulty_forces(scu, out)
-        return out
-
-    def read_imu_adc(self, scu: int) -> list[int]:
-        """The body board's (``hardware.IMU_SCU``) inclinometer and gyroscope, four 8-bit ADC
-        counts (``hardware.IMU_SENSOR_NAMES``; humanoid_twin/plant/imu.py); other boards read 0."""
-        self._sync()
-        if scu != hardware.IMU_SCU:
-            _check_scu(scu)
-            return [0, 0, 0, 0]
-        return self._imu.read(self.t_us)
 
     def trunk_attitude_deg(self) -> tuple[float, float, float, float]:
         """Ground truth: the trunk's roll, pitch (deg) and body rates (deg/s) at the IMU site."""

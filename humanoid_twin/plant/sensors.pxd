@@ -29,3 +29,35 @@ cdef class SensorFrontEnd:
     @cython.locals(w=cython.double, x=cython.double, y=cython.double, z=cython.double,
                    roll=cython.double, s=cython.double, pitch=cython.double)
     cpdef tuple attitude(self, long quat_adr, long gyro_adr)
+
+cdef long _IMU_SCU
+cdef long _NOISE_BLOCK
+
+cdef class BoardIO:
+    # set by Plant (plant/plant.py), which documents them; C fields so a board's read stays in C
+    cdef public long long t_us
+    cdef public long long timestep_us
+    cdef public long long step_ns_total
+    cdef public object _clock
+    cdef public object model
+    cdef public object data
+    cdef public object _tilt_profile
+    cdef public object _imu
+    cdef public SensorFrontEnd _sense
+    cdef public dict _servo
+    cdef public dict _foot_touch_of_scu
+    cdef public dict pot_b_true_deg
+    cdef public list _powered
+    cdef public list _pot_noise
+    cdef public list _force_noise
+    cdef public bint _force_fault
+
+    @cython.locals(now=cython.longlong)
+    cpdef _sync(self)
+    @cython.locals(due=cython.longlong, k=cython.longlong, w0=cython.longlong)
+    cpdef advance_to(self, t_us)
+    @cython.locals(noise=list)
+    cpdef tuple read_servos(self, scu)
+    @cython.locals(noise=list, out=list)
+    cpdef list read_force_adc(self, scu)
+    cpdef list read_imu_adc(self, scu)

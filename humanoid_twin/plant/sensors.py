@@ -1,23 +1,29 @@
 """The Slave boards' sensor electronics on the plant's state: servo potentiometers, current sense
 and foot force sensors as the boards' ADCs read them (PIC2 ``updateServoMeasures`` and
-``sampleExtraSensors`` inputs; the models are in :meth:`Plant.read_servos
-<humanoid_twin.plant.plant.Plant.read_servos>` and :meth:`Plant.read_force_adc
-<humanoid_twin.plant.plant.Plant.read_force_adc>`, which call this module).
+``sampleExtraSensors`` inputs), and the plant's physics time kept up with the twin's clock.
 
-Part of the compiled core (sensors.pxd): the per-tick arithmetic reads MuJoCo's arrays through C
-memoryviews instead of one numpy scalar per value. No MuJoCo import here: the plant hands over
+Part of the compiled core (sensors.pxd). :class:`SensorFrontEnd` does the per-tick arithmetic on
+MuJoCo's arrays through C memoryviews instead of one numpy scalar per value: the plant hands over
 its ``qpos``, ``qvel``, ``actuator_force`` and ``sensordata`` arrays once, and their memory is
 MjData's for the plant's whole life. (Interpreted, each value read is turned into a Python
 float at once, as the plant did before: numpy scalars are slower and would leak into results.)
+:class:`BoardIO` is the base class of :class:`~humanoid_twin.plant.plant.Plant`: what the boards
+call every tick (``read_servos``, ``read_force_adc``, ``read_imu_adc``) and the physics sync
+before each of them (``advance_to``), so a board's read is one C call into the plant. The models
+are documented on those methods; the rest of the plant is Python (plant/plant.py).
 """
 
 from __future__ import annotations
 
 import math
+import time
 from typing import Any
+
+import mujoco
 
 from humanoid_twin import hardware
 from humanoid_twin.plant import constants as C  # noqa: N812
+from humanoid_twin.protocol.wire import check_scu
 
 try:        # Cython's pure-Python mode: True in the compiled core (as in humanoid_twin/clock.py)
     import cython
@@ -25,7 +31,8 @@ try:        # Cython's pure-Python mode: True in the compiled core (as in humano
 except ImportError:
     _COMPILED = False
 
-__all__ = ["SensorFrontEnd", "DEG_PER_RAD", "COUNTS_PER_N", "round_half_even"]
+__all__ = ["BoardIO", "SensorFrontEnd", "DEG_PER_RAD", "COUNTS_PER_N", "round_half_even", "PlantError",
+           "PlantInputError"]
 
 DEG_PER_RAD = 180.0 / math.pi
 COUNTS_PER_N = 1.0 / hardware.FORCE_N_PER_COUNT
@@ -36,6 +43,20 @@ _POT_ADC_MAX = hardware.POT_ADC_MAX
 _CURRENT_FULL_US = hardware.CURRENT_PULSE_FULL_US
 _CURRENT_IDLE_US = C.CURRENT_IDLE_US
 _FORCE_ADC_MAX = hardware.FORCE_ADC_MAX
+_IMU_SCU = hardware.IMU_SCU
+_NOISE_BLOCK = 8192                 # standard noise draws taken from a stream at a time
+
+
+class PlantError(Exception):
+    """The model cannot be loaded or does not match what the boards expect."""
+
+
+class PlantInputError(PlantError, ValueError):
+    """A caller passed an invalid argument (SCU address, pulse width, tilt, ...)."""
+
+
+def _check_scu(scu: int) -> None:
+    check_scu(scu, error=PlantInputError)
 
 
 def round_half_even(x: float) -> int:
@@ -117,3 +138,87 @@ class SensorFrontEnd:
         s = 2.0 * (w * y - z * x)
         pitch = math.asin(-1.0 if s < -1.0 else (1.0 if s > 1.0 else s)) * _DEG
         return roll, pitch, float(sd[gyro_adr]) * _DEG, float(sd[gyro_adr + 1]) * _DEG
+
+
+class BoardIO:
+    """The plant's part the boards call every tick, compiled: the base class of
+    :class:`~humanoid_twin.plant.plant.Plant`, which sets every attribute (the MuJoCo model and
+    data, the front end, the per-SCU tables, the noise streams) and documents the models.
+
+    Physics time ``t_us`` follows the clock bound to the plant: each read first runs the physics
+    due up to the clock's now (``_sync``), in this one place."""
+
+    def _sync(self) -> None:
+        """Run the physics due up to the bound clock's now (nothing without a clock)."""
+        c = self._clock
+        if c is not None:
+            now = c.now_us
+            if now - self.t_us >= self.timestep_us:
+                self.advance_to(now)
+
+    def advance_to(self, t_us: int) -> None:
+        """Run the physics steps due up to ``t_us`` (never past it) in one ``mj_step`` call.
+
+        The platform tilt profile, if any, is evaluated on a fixed 10 ms grid of physics time
+        (the tilt of ``[g, g + 10 ms)`` is ``fn(g)``), so where the callers split the stepping
+        (a recorder, a monitor) does not change the physics.
+        """
+        due = t_us - self.t_us
+        if due < 0:
+            raise PlantInputError(f"cannot advance the plant backwards: {t_us} us < {self.t_us} us")
+        k = due // self.timestep_us
+        if k <= 0:
+            return
+        w0 = time.perf_counter_ns()
+        if self._tilt_profile is None:
+            mujoco.mj_step(self.model, self.data, nstep=k)
+            self.t_us += k * self.timestep_us
+        else:
+            self._advance_with_profile(k)
+        self.step_ns_total += time.perf_counter_ns() - w0
+
+    def read_servos(self, scu: int) -> tuple[list[int], list[int]]:
+        """Potentiometer ADC counts and current pulse widths (us) of the three servos of ``scu``.
+
+        Pot: ADC = round((b_true - servo_deg) * POT_COUNTS_PER_DEG + noise), clamped 0..1023,
+        i.e. the manual's pos = b - m * ADC (PIC2 ``updateServoMeasures``). Current: width =
+        CURRENT_PULSE_FULL_US * min(1, |motor torque| / stall) + idle when powered, where the
+        motor torque is the actuator force minus the back-EMF damping term; 0 when PWM is off.
+        """
+        self._sync()
+        rows = self._servo.get(scu) if type(scu) is int else None
+        if rows is None:
+            _check_scu(scu)
+        noise = self._pot_noise
+        if len(noise) < 3:
+            noise.extend(self._pot_rng.normal(0.0, C.POT_NOISE_STD_COUNTS, _NOISE_BLOCK).tolist())
+        return self._sense.servos(rows, self.pot_b_true_deg[scu], self._powered, noise)
+
+    def read_force_adc(self, scu: int) -> list[int]:
+        """The four force sensors of the foot of ``scu`` as 8-bit ADC values (table 12 order).
+
+        ADC = clamp(round(F / FORCE_N_PER_COUNT + noise), 0, 255), F the pad's touch-sensor
+        normal force; an unloaded sensor reads 0. Boards without a foot read [0, 0, 0, 0]
+        (PIC2 ``sampleExtraSensors`` input).
+        """
+        self._sync()
+        adrs = self._foot_touch_of_scu.get(scu) if type(scu) is int else None
+        if adrs is None:
+            _check_scu(scu)
+            return [0, 0, 0, 0]
+        noise = self._force_noise
+        if len(noise) < 4:
+            noise.extend(self._force_rng.normal(0.0, C.FORCE_NOISE_STD_COUNTS, _NOISE_BLOCK).tolist())
+        out = self._sense.forces(adrs, noise)
+        if self._force_fault:
+            return self._faulty_forces(scu, out)
+        return out
+
+    def read_imu_adc(self, scu: int) -> list[int]:
+        """The body board's (``hardware.IMU_SCU``) inclinometer and gyroscope, four 8-bit ADC
+        counts (``hardware.IMU_SENSOR_NAMES``; humanoid_twin/plant/imu.py); other boards read 0."""
+        self._sync()
+        if scu != _IMU_SCU:
+            _check_scu(scu)
+            return [0, 0, 0, 0]
+        return self._imu.read(self.t_us)
