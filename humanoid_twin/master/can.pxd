@@ -10,8 +10,8 @@ from humanoid_twin.protocol.canframes cimport (
     control_byte,
     pack_actuation1,
     pack_actuation2,
-    unpack_sensors1,
-    unpack_sensors2,
+    unpack_sensors1_into,
+    unpack_sensors2_into,
 )
 
 # constants of the per-packet path as C values (imported here; nobody imports them from here)
@@ -24,16 +24,18 @@ cdef class MasterCan:
     cdef public CanDrivers drivers
     cdef public list rejected
     cdef public list _tx_msgs
+    cdef list _tx_ids
+    cdef list _actuators
 
     cpdef canInit(self, object on_rx)
     @cython.locals(a=ScuActuation, c=MasterCounters, ok=bint, kd=list)
     cpdef bint canSendMsg(self, long long scu, long long index)
-    @cython.locals(ctl=CanController, key=cython.longlong)
+    @cython.locals(ctl=CanController, key=cython.longlong, msgs=list)
     cpdef object _message(self, long long scu, long long index, object payload)
     cpdef canAbort(self)
     @cython.locals(msg=Frame, data=bytes, db=Database, c=MasterCounters, s=ScuSensors, ident=cython.longlong,
                    src=cython.longlong, dst=cython.longlong, index=cython.longlong,
-                   op=cython.longlong, sf_src=cython.longlong)
+                   op=cython.longlong)
     cpdef bint canReceiveMsg(self)
     @cython.locals(rejected=list)
     cpdef bint _reject(self, long long ident, str reason)

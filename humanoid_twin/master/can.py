@@ -11,7 +11,7 @@ from __future__ import annotations
 from typing import TYPE_CHECKING
 
 from humanoid_twin.master.candrivers import CanDrivers
-from humanoid_twin.master.database import Database
+from humanoid_twin.master.database import Database, ScuActuation
 from humanoid_twin.protocol.canframes import (
     ACTUATION_IDS,
     ID_FIELDS,
@@ -24,8 +24,8 @@ from humanoid_twin.protocol.canframes import (
     master_filters,
     pack_actuation1,
     pack_actuation2,
-    unpack_sensors1,
-    unpack_sensors2,
+    unpack_sensors1_into,
+    unpack_sensors2_into,
 )
 from humanoid_twin.protocol.wire import N_SCU, node_name
 
@@ -45,8 +45,13 @@ class MasterCan:
         self.db = db
         self.drivers = CanDrivers(network, name)
         self.rejected: list[tuple[int, int, str]] = []  # (t_us, id, reason), the last few rejected frames
-        # scu * 2 + index -> its last actuation message (None: not requested yet)
+        # the schedule's look-ups, by address (0, the Master's, unused): the database's actuation
+        # records; and by scu * 2 + index: the last actuation message (None: not requested yet),
+        # its identifier
+        self._actuators: list[ScuActuation | None] = [db.actuators.get(k) for k in range(N_SCU + 1)]
         self._tx_msgs: list[Frame | None] = [None] * ((N_SCU + 1) * 2)
+        self._tx_ids: list[int] = [ACTUATION_IDS[k][i] if k in ACTUATION_IDS else -1
+                                   for k in range(N_SCU + 1) for i in (0, 1)]
 
     def canInit(self, on_rx: Callable[[Frame], None]) -> None:
         """``canInit`` (table 4): CAN peripheral with the Master's acceptance filters (slide 23:
@@ -61,7 +66,7 @@ class MasterCan:
         cached until the host changes the SCU's data. Packet 1 goes through TX buffer 0, packet 2
         through TX buffer 1 (slide 24). Returns False if the controller refused the request.
         """
-        a = self.db.actuators[scu]
+        a = self._actuators[scu]
         c = self.db.counters
         c.can_tx_requests += 1
         if index == 0:
@@ -86,7 +91,8 @@ class MasterCan:
         ctl = self.drivers.controller
         assert ctl is not None, "canInit attaches the controller before any canSendMsg"
         key = scu * 2 + index
-        msg = self._tx_msgs[key] = ctl.load_tx(self._tx_msgs[key], ACTUATION_IDS[scu][index], payload)
+        msgs = self._tx_msgs
+        msg = msgs[key] = ctl.load_tx(msgs[key], self._tx_ids[key], payload)
         return msg
 
     def canAbort(self) -> None:
@@ -111,26 +117,19 @@ class MasterCan:
         if s is None or op != OP_SENSORS or dst != MASTER_ADDRESS:
             return self._reject(ident, f"id 0x{ident:03X}: not a sensor packet from slave 1..8 to Master")
         data = msg.data
-        try:
+        try:    # the payload's fields straight into the database (nothing stored if rejected)
             if index == 0:
-                sf_src, _, pos, vel, status = unpack_sensors1(data)
+                s.status = unpack_sensors1_into(data, src, s.pos, s.vel)
             else:
-                sf_src, _, curr, special = unpack_sensors2(data)
+                unpack_sensors2_into(data, src, s.current, s.special)
         except PayloadError as exc:
             return self._reject(ident, str(exc))
-        if sf_src != src:
-            return self._reject(ident, f"SFlags source {sf_src} does not match the identifier's source {src}")
         if index == 0:
-            s.pos[:] = pos
-            s.vel[:] = vel
-            s.status = status
             s.sflags = data[0] & SFLAGS_SUPERVISOR
             s.rx1 = True
             s.packets1 += 1
-            db.update_calibration(src, status)
+            db.update_calibration(src, s.status)
         else:
-            s.current[:] = curr
-            s.special[:] = special
             s.sflags2 = data[0] & SFLAGS_SUPERVISOR
             s.rx2 = True
             s.packets2 += 1
