@@ -11,12 +11,11 @@ from __future__ import annotations
 from typing import TYPE_CHECKING
 
 from humanoid_twin.master.candrivers import CanDrivers
-from humanoid_twin.master.database import Database, ScuActuation
+from humanoid_twin.master.database import Database, ScuActuation, ScuSensors
 from humanoid_twin.protocol.canframes import (
     ACTUATION_IDS,
-    ID_FIELDS,
     MASTER_ADDRESS,
-    OP_SENSORS,
+    SENSOR_IDS,
     SFLAGS_SUPERVISOR,
     STD_ID_MAX,
     PayloadError,
@@ -24,6 +23,7 @@ from humanoid_twin.protocol.canframes import (
     master_filters,
     pack_actuation1,
     pack_actuation2,
+    packet_index,
     unpack_sensors1_into,
     unpack_sensors2_into,
 )
@@ -52,6 +52,13 @@ class MasterCan:
         self._tx_msgs: list[Frame | None] = [None] * ((N_SCU + 1) * 2)
         self._tx_ids: list[int] = [ACTUATION_IDS[k][i] if k in ACTUATION_IDS else -1
                                    for k in range(N_SCU + 1) for i in (0, 1)]
+        # the receive path's: by identifier, the slave 1..8 whose sensor packet to the Master it
+        # is (0: none); by address, the database's sensor records
+        self._rx_sources: list[int] = [0] * (STD_ID_MAX + 1)
+        for k, ids in SENSOR_IDS.items():
+            for ident in ids:
+                self._rx_sources[ident] = k
+        self._sensors: list[ScuSensors | None] = [db.sensors.get(k) for k in range(N_SCU + 1)]
 
     def canInit(self, on_rx: Callable[[Frame], None]) -> None:
         """``canInit`` (table 4): CAN peripheral with the Master's acceptance filters (slide 23:
@@ -112,10 +119,11 @@ class MasterCan:
         c = db.counters
         c.can_rx_frames += 1
         ident = msg.arbitration_id
-        src, dst, index, op = ID_FIELDS[ident] if ident <= STD_ID_MAX else (-1, -1, 0, -1)
-        s = db.sensors.get(src)
-        if s is None or op != OP_SENSORS or dst != MASTER_ADDRESS:
+        src = self._rx_sources[ident] if 0 <= ident <= STD_ID_MAX else 0
+        if src == 0:
             return self._reject(ident, f"id 0x{ident:03X}: not a sensor packet from slave 1..8 to Master")
+        s = self._sensors[src]
+        index = packet_index(ident)
         data = msg.data
         try:    # the payload's fields straight into the database (nothing stored if rejected)
             if index == 0:
