@@ -432,6 +432,49 @@ def test_sensors2_round_trip(src, curr, data4) -> None:
     assert cf.unpack_sensors2(data) == (src, 1, curr, data4)
 
 
+def _unpacked(unpack, *args) -> tuple | str:
+    """An unpack function's result, or the message of the PayloadError it raised."""
+    try:
+        return unpack(*args)
+    except PayloadError as exc:
+        return f"PayloadError: {exc}"
+
+
+# any 8 bytes (most with a valid SFlags byte) from any source address
+_sflags_bytes = st.one_of(u8, st.sampled_from([cf.sflags(k, i) | f for k in range(16) for i in (0, 1)
+                                                for f in range(4)]))
+
+
+@given(_sflags_bytes, st.binary(min_size=7, max_size=7), st.integers(0, 15))
+def test_sensors1_into_stores_what_unpack_sensors1_reads(sf, rest, src) -> None:
+    """The Master's receive codec sets the database's lists to unpack_sensors1's fields, or
+    raises its error (or a source mismatch) and leaves them as they were."""
+    data = bytes([sf]) + rest
+    pos, vel = [7, 7, 7], [9, 9, 9]
+    got = _unpacked(cf.unpack_sensors1_into, data, src, pos, vel)
+    want = _unpacked(cf.unpack_sensors1, data)
+    if isinstance(want, tuple) and want[0] != src:
+        want = f"PayloadError: SFlags source {want[0]} does not match the identifier's source {src}"
+    if isinstance(want, str):
+        assert (got, pos, vel) == (want, [7, 7, 7], [9, 9, 9])
+    else:
+        assert (got, tuple(pos), tuple(vel)) == (want[4], want[2], want[3])
+
+
+@given(_sflags_bytes, st.binary(min_size=7, max_size=7), st.integers(0, 15))
+def test_sensors2_into_stores_what_unpack_sensors2_reads(sf, rest, src) -> None:
+    data = bytearray([sf]) + rest                  # python-can's Message.data
+    curr, data4 = [7, 7, 7], [9, 9, 9, 9]
+    got = _unpacked(cf.unpack_sensors2_into, data, src, curr, data4)
+    want = _unpacked(cf.unpack_sensors2, data)
+    if isinstance(want, tuple) and want[0] != src:
+        want = f"PayloadError: SFlags source {want[0]} does not match the identifier's source {src}"
+    if isinstance(want, str):
+        assert (got, curr, data4) == (want, [7, 7, 7], [9, 9, 9, 9])
+    else:
+        assert (got, tuple(curr), tuple(data4)) == (None, want[2], want[3])
+
+
 def _packed(pack, *args) -> bytes | str:
     """A pack function's bytes, or the message of the PayloadError it raised."""
     try:
@@ -485,6 +528,9 @@ def test_payload_byte_layouts() -> None:
         (lambda: cf.unpack_sensors2(bytes.fromhex("20 00 00 00 00 00 00 00")), "index 0, expected 1"),
         (lambda: cf.unpack_sensors2(bytes.fromhex("29 00 00 00 00 00 00 00")), "bits 2-0"),
         (lambda: cf.unpack_sensors2(bytes.fromhex("28 00 65 00 00 00 00 00")), "0..100"),
+        (lambda: cf.unpack_sensors1_into(bytes.fromhex("20 00 00 00 00 00 00 00"), 3, [0] * 3, [0] * 3),
+         "SFlags source 2 does not match the identifier's source 3"),
+        (lambda: cf.unpack_sensors2_into(bytes(8), 0, [0] * 3, [0] * 4), "index 0, expected 1"),
     ],
 )
 def test_payload_errors(call, match) -> None:

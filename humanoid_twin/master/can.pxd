@@ -8,14 +8,15 @@ from humanoid_twin.master.candrivers cimport CanDrivers
 from humanoid_twin.master.database cimport Database, MasterCounters, ScuActuation, ScuSensors
 from humanoid_twin.protocol.canframes cimport (
     control_byte,
+    packet_index,
     pack_actuation1,
     pack_actuation2,
-    unpack_sensors1,
-    unpack_sensors2,
+    unpack_sensors1_into,
+    unpack_sensors2_into,
 )
 
 # constants of the per-packet path as C values (imported here; nobody imports them from here)
-cdef long long MASTER_ADDRESS, OP_SENSORS, SFLAGS_SUPERVISOR, STD_ID_MAX
+cdef long long SFLAGS_SUPERVISOR, STD_ID_MAX
 
 
 cdef class MasterCan:
@@ -24,16 +25,19 @@ cdef class MasterCan:
     cdef public CanDrivers drivers
     cdef public list rejected
     cdef public list _tx_msgs
+    cdef list _tx_ids
+    cdef list _actuators
+    cdef list _rx_sources
+    cdef list _sensors
 
     cpdef canInit(self, object on_rx)
     @cython.locals(a=ScuActuation, c=MasterCounters, ok=bint, kd=list)
     cpdef bint canSendMsg(self, long long scu, long long index)
-    @cython.locals(ctl=CanController, key=cython.longlong)
+    @cython.locals(ctl=CanController, key=cython.longlong, msgs=list)
     cpdef object _message(self, long long scu, long long index, object payload)
     cpdef canAbort(self)
     @cython.locals(msg=Frame, data=bytes, db=Database, c=MasterCounters, s=ScuSensors, ident=cython.longlong,
-                   src=cython.longlong, dst=cython.longlong, index=cython.longlong,
-                   op=cython.longlong, sf_src=cython.longlong)
+                   src=cython.longlong, index=cython.longlong)
     cpdef bint canReceiveMsg(self)
     @cython.locals(rejected=list)
     cpdef bint _reject(self, long long ident, str reason)

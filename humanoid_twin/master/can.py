@@ -11,12 +11,11 @@ from __future__ import annotations
 from typing import TYPE_CHECKING
 
 from humanoid_twin.master.candrivers import CanDrivers
-from humanoid_twin.master.database import Database
+from humanoid_twin.master.database import Database, ScuActuation, ScuSensors
 from humanoid_twin.protocol.canframes import (
     ACTUATION_IDS,
-    ID_FIELDS,
     MASTER_ADDRESS,
-    OP_SENSORS,
+    SENSOR_IDS,
     SFLAGS_SUPERVISOR,
     STD_ID_MAX,
     PayloadError,
@@ -24,8 +23,9 @@ from humanoid_twin.protocol.canframes import (
     master_filters,
     pack_actuation1,
     pack_actuation2,
-    unpack_sensors1,
-    unpack_sensors2,
+    packet_index,
+    unpack_sensors1_into,
+    unpack_sensors2_into,
 )
 from humanoid_twin.protocol.wire import N_SCU, node_name
 
@@ -45,8 +45,20 @@ class MasterCan:
         self.db = db
         self.drivers = CanDrivers(network, name)
         self.rejected: list[tuple[int, int, str]] = []  # (t_us, id, reason), the last few rejected frames
-        # scu * 2 + index -> its last actuation message (None: not requested yet)
+        # the schedule's look-ups, by address (0, the Master's, unused): the database's actuation
+        # records; and by scu * 2 + index: the last actuation message (None: not requested yet),
+        # its identifier
+        self._actuators: list[ScuActuation | None] = [db.actuators.get(k) for k in range(N_SCU + 1)]
         self._tx_msgs: list[Frame | None] = [None] * ((N_SCU + 1) * 2)
+        self._tx_ids: list[int] = [ACTUATION_IDS[k][i] if k in ACTUATION_IDS else -1
+                                   for k in range(N_SCU + 1) for i in (0, 1)]
+        # the receive path's: by identifier, the slave 1..8 whose sensor packet to the Master it
+        # is (0: none); by address, the database's sensor records
+        self._rx_sources: list[int] = [0] * (STD_ID_MAX + 1)
+        for k, ids in SENSOR_IDS.items():
+            for ident in ids:
+                self._rx_sources[ident] = k
+        self._sensors: list[ScuSensors | None] = [db.sensors.get(k) for k in range(N_SCU + 1)]
 
     def canInit(self, on_rx: Callable[[Frame], None]) -> None:
         """``canInit`` (table 4): CAN peripheral with the Master's acceptance filters (slide 23:
@@ -61,7 +73,7 @@ class MasterCan:
         cached until the host changes the SCU's data. Packet 1 goes through TX buffer 0, packet 2
         through TX buffer 1 (slide 24). Returns False if the controller refused the request.
         """
-        a = self.db.actuators[scu]
+        a = self._actuators[scu]
         c = self.db.counters
         c.can_tx_requests += 1
         if index == 0:
@@ -86,7 +98,8 @@ class MasterCan:
         ctl = self.drivers.controller
         assert ctl is not None, "canInit attaches the controller before any canSendMsg"
         key = scu * 2 + index
-        msg = self._tx_msgs[key] = ctl.load_tx(self._tx_msgs[key], ACTUATION_IDS[scu][index], payload)
+        msgs = self._tx_msgs
+        msg = msgs[key] = ctl.load_tx(msgs[key], self._tx_ids[key], payload)
         return msg
 
     def canAbort(self) -> None:
@@ -106,31 +119,25 @@ class MasterCan:
         c = db.counters
         c.can_rx_frames += 1
         ident = msg.arbitration_id
-        src, dst, index, op = ID_FIELDS[ident] if ident <= STD_ID_MAX else (-1, -1, 0, -1)
-        s = db.sensors.get(src)
-        if s is None or op != OP_SENSORS or dst != MASTER_ADDRESS:
+        src = self._rx_sources[ident] if 0 <= ident <= STD_ID_MAX else 0
+        if src == 0:
             return self._reject(ident, f"id 0x{ident:03X}: not a sensor packet from slave 1..8 to Master")
+        s = self._sensors[src]
+        index = packet_index(ident)
         data = msg.data
-        try:
+        try:    # the payload's fields straight into the database (nothing stored if rejected)
             if index == 0:
-                sf_src, _, pos, vel, status = unpack_sensors1(data)
+                s.status = unpack_sensors1_into(data, src, s.pos, s.vel)
             else:
-                sf_src, _, curr, special = unpack_sensors2(data)
+                unpack_sensors2_into(data, src, s.current, s.special)
         except PayloadError as exc:
             return self._reject(ident, str(exc))
-        if sf_src != src:
-            return self._reject(ident, f"SFlags source {sf_src} does not match the identifier's source {src}")
         if index == 0:
-            s.pos[:] = pos
-            s.vel[:] = vel
-            s.status = status
             s.sflags = data[0] & SFLAGS_SUPERVISOR
             s.rx1 = True
             s.packets1 += 1
-            db.update_calibration(src, status)
+            db.update_calibration(src, s.status)
         else:
-            s.current[:] = curr
-            s.special[:] = special
             s.sflags2 = data[0] & SFLAGS_SUPERVISOR
             s.rx2 = True
             s.packets2 += 1

@@ -11,11 +11,12 @@ cimport cython
 
 # C constants of the codecs (private names and aliases; canframes.py)
 cdef long _CAN_STATE, _CAN_STATE_MAX, _SUPERVISOR, _LAW, _CURRENT_MAX, _SF_SHIFT, _SF_INDEX
-cdef long _ADDR_MASK, _SFLAGS_LOW
+cdef long _ADDR_MASK, _SFLAGS_LOW, _SRC_SHIFT, _DST_SHIFT, _INDEX_SHIFT, _OP_MASK, _PAYLOAD_LEN
 cdef tuple _INT8
 
 cdef bint _COMPILED
 
+@cython.locals(b=bytes)
 cpdef bytes _payload(object data, str packet)
 cdef bytes _bytes8(unsigned char b0, unsigned char b1, unsigned char b2, unsigned char b3,
                    unsigned char b4, unsigned char b5, unsigned char b6, unsigned char b7)
@@ -37,13 +38,23 @@ cpdef bytes pack_actuation2(object ki, object kp, object kd1, object kd2)
 @cython.locals(b=bytes)
 cpdef tuple unpack_actuation2(object data)
 cpdef bytes pack_sensors1(object src, object pos, object speed, object status, object flags=*)
-@cython.locals(b=bytes, sf=cython.long, i8=tuple)
+@cython.locals(b=bytes, src=cython.long, pos=list, vel=list, status=cython.long)
 cpdef tuple unpack_sensors1(object data)
+# the Master's receive path: the payload's fields straight into its database's lists
+@cython.locals(b=bytes, sf_src=cython.long, i8=tuple)
+cpdef long unpack_sensors1_into(object data, long src, list pos, list vel) except -1
+@cython.locals(sf=cython.long)
+cdef long _sensors1_source(bytes b) except -1
+cdef object _source_error(long sf_src, long src)
 cpdef bytes pack_sensors1_fields(long src, long pos1, long pos2, long pos3, long speed1, long speed2,
                                  long speed3, long status, long flags)
 cpdef tuple supervisor_flags(object data)
 cpdef bytes pack_sensors2(object src, object curr, object data4, object law_stopped=*)
-@cython.locals(b=bytes, c1=cython.long, c2=cython.long, c3=cython.long)
+@cython.locals(b=bytes, src=cython.long, curr=list, data4=list)
 cpdef tuple unpack_sensors2(object data)
+@cython.locals(b=bytes, sf_src=cython.long)
+cpdef unpack_sensors2_into(object data, long src, list curr, list data4)
+@cython.locals(c1=cython.long, c2=cython.long, c3=cython.long)
+cdef long _sensors2_source(bytes b) except -1
 cpdef bytes pack_sensors2_fields(long src, long curr1, long curr2, long curr3, long data1, long data2,
                                  long data3, long data4, bint law_stopped)

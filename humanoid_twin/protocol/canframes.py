@@ -87,9 +87,11 @@ __all__ = [
     "pack_sensors1",
     "pack_sensors1_fields",
     "unpack_sensors1",
+    "unpack_sensors1_into",
     "pack_sensors2",
     "pack_sensors2_fields",
     "unpack_sensors2",
+    "unpack_sensors2_into",
     "load_dbc",
     "DBC_RESOURCE",
 ]
@@ -296,10 +298,10 @@ def sflags(src: int, index: int) -> int:
 def _split_sflags(sf: int, index: int, packet: str) -> int:
     if sf & _SFLAGS_LOW:
         raise PayloadError(f"{packet}: SFlags 0x{sf:02X} has bits 2-0 set (must be zero)")
-    got = 1 if sf & SFLAGS_INDEX else 0
+    got = 1 if sf & _SF_INDEX else 0
     if got != index:
         raise PayloadError(f"{packet}: SFlags 0x{sf:02X} carries index {got}, expected {index}")
-    return sf >> SFLAGS_SOURCE_SHIFT
+    return sf >> _SF_SHIFT
 
 
 # --- payloads ------------------------------------------------------------------------------
@@ -328,7 +330,7 @@ _INT8: tuple[int, ...] = tuple(from_s8(b) for b in range(256))
 def _payload(data: bytes | bytearray | memoryview, packet: str) -> bytes:
     """A received payload as ``bytes`` of :data:`PAYLOAD_LEN` (``PayloadError`` otherwise)."""
     b = data if type(data) is bytes else bytes(memoryview(data))
-    if len(b) != PAYLOAD_LEN:
+    if len(b) != _PAYLOAD_LEN:
         raise _length_error(packet, data)
     return b
 
@@ -421,16 +423,46 @@ def pack_sensors1_fields(src: int, pos1: int, pos2: int, pos3: int, speed1: int,
 
 
 def unpack_sensors1(data: bytes) -> tuple[int, int, tuple[int, int, int], tuple[int, int, int], int]:
-    """Sensors 1 payload -> ``(src, index, (pos1, pos2, pos3), (speed1, speed2, speed3), status)``
-    (``canReceiveMsg`` on the Master). ``PayloadError`` if its index is not 0 or SFlags bits 1-0
-    are 3. Bits 2-0 are the supervisor flags (:func:`supervisor_flags`)."""
+    """Sensors 1 payload -> ``(src, index, (pos1, pos2, pos3), (speed1, speed2, speed3), status)``.
+    ``PayloadError`` if its index is not 0 or SFlags bits 1-0 are 3. Bits 2-0 are the supervisor
+    flags (:func:`supervisor_flags`)."""
     b = _payload(data, "Sensors1")
+    src = _sensors1_source(b)
+    pos = [0, 0, 0]
+    vel = [0, 0, 0]
+    status = unpack_sensors1_into(b, src, pos, vel)
+    return src, 0, (pos[0], pos[1], pos[2]), (vel[0], vel[1], vel[2]), status
+
+
+def unpack_sensors1_into(data: bytes, src: int, pos: list[int], vel: list[int]) -> int:
+    """:func:`unpack_sensors1` of a packet from slave ``src`` into lists (``canReceiveMsg`` on
+    the Master, straight into its database: no tuple per packet): sets ``pos[0:3]`` and
+    ``vel[0:3]``, returns the Status byte. The same ``PayloadError`` as :func:`unpack_sensors1`,
+    and one when the SFlags source is not ``src``; the lists are left as they were then."""
+    b = _payload(data, "Sensors1")
+    sf_src = _sensors1_source(b)
+    if sf_src != src:
+        raise _source_error(sf_src, src)
+    i8 = _INT8
+    pos[0] = i8[b[1]]
+    pos[1] = i8[b[2]]
+    pos[2] = i8[b[3]]
+    vel[0] = i8[b[4]]
+    vel[1] = i8[b[5]]
+    vel[2] = i8[b[6]]
+    return b[7]
+
+
+def _sensors1_source(b: bytes) -> int:
+    """The source address in a Sensors 1 payload's SFlags (``PayloadError`` as :func:`unpack_sensors1`)."""
     sf = b[0]
     if sf & _CAN_STATE > _CAN_STATE_MAX:
         raise PayloadError(f"Sensors1: SFlags 0x{sf:02X} carries CAN state 3 (0..2 only)")
-    i8 = _INT8
-    return (_split_sflags(sf & ~_SUPERVISOR, 0, "Sensors1"), 0, (i8[b[1]], i8[b[2]], i8[b[3]]),
-            (i8[b[4]], i8[b[5]], i8[b[6]]), b[7])
+    return _split_sflags(sf & ~_SUPERVISOR, 0, "Sensors1")
+
+
+def _source_error(sf_src: int, src: int) -> PayloadError:
+    return PayloadError(f"SFlags source {sf_src} does not match the identifier's source {src}")
 
 
 # Sensors 1 SFlags bits 2-0 (zero in seed 002 slide 20): the supervisor flags of the Slave
@@ -452,6 +484,7 @@ _LAW = SFLAGS2_LAW
 _CURRENT_MAX = CURRENT_MAX
 _SF_SHIFT = SFLAGS_SOURCE_SHIFT
 _SF_INDEX = SFLAGS_INDEX
+_PAYLOAD_LEN = PAYLOAD_LEN
 
 
 def supervisor_flags(data: bytes | bytearray) -> tuple[bool, int]:
@@ -497,12 +530,39 @@ def unpack_sensors2(data: bytes) -> tuple[int, int, tuple[int, int, int], tuple[
     ``PayloadError`` if SFlags bits 1-0 are not zero, its index is not 1, or a current is over 100
     (bit 2, :data:`SFLAGS2_LAW`, is read with ``data[0] & SFLAGS2_LAW``)."""
     b = _payload(data, "Sensors2")
+    src = _sensors2_source(b)
+    curr = [0, 0, 0]
+    data4 = [0, 0, 0, 0]
+    unpack_sensors2_into(b, src, curr, data4)
+    return src, 1, (curr[0], curr[1], curr[2]), (data4[0], data4[1], data4[2], data4[3])
+
+
+def unpack_sensors2_into(data: bytes, src: int, curr: list[int], data4: list[int]) -> None:
+    """:func:`unpack_sensors2` of a packet from slave ``src`` into lists (``canReceiveMsg``, as
+    :func:`unpack_sensors1_into`): sets ``curr[0:3]`` and ``data4[0:4]``. The same
+    ``PayloadError`` as :func:`unpack_sensors2`, and one when the SFlags source is not ``src``;
+    the lists are left as they were then."""
+    b = _payload(data, "Sensors2")
+    sf_src = _sensors2_source(b)
+    if sf_src != src:
+        raise _source_error(sf_src, src)
+    curr[0] = b[1]
+    curr[1] = b[2]
+    curr[2] = b[3]
+    data4[0] = b[4]
+    data4[1] = b[5]
+    data4[2] = b[6]
+    data4[3] = b[7]
+
+
+def _sensors2_source(b: bytes) -> int:
+    """The source address in a Sensors 2 payload's SFlags (``PayloadError`` as :func:`unpack_sensors2`)."""
     c1 = b[1]
     c2 = b[2]
     c3 = b[3]
     if c1 > _CURRENT_MAX or c2 > _CURRENT_MAX or c3 > _CURRENT_MAX:
         raise PayloadError(f"Sensors2: current must be 0..{CURRENT_MAX}, got {(c1, c2, c3)}")
-    return _split_sflags(b[0] & ~_LAW, 1, "Sensors2"), 1, (c1, c2, c3), (b[4], b[5], b[6], b[7])
+    return _split_sflags(b[0] & ~_LAW, 1, "Sensors2")
 
 
 # --- DBC -----------------------------------------------------------------------------------
