@@ -179,19 +179,13 @@ class TruthProbe:
                                  np.ascontiguousarray(joint_qadr, dtype=np.int64), d.xpos, d.xmat,
                                  d.subtree_com, d.site_xpos, d.site_xmat, d.qpos)
 
-    def _contacts(self) -> tuple[Any, Any, Any, Any]:
-        """The contacts' arrays now (``geom``, ``efc_address``, ``pos``: ``ncon`` long, made anew
-        at each read as MuJoCo moves them) and the forces ``ContactScan`` reads (with
-        ``self._edges``: ``efc_force``; else each contact's normal force, as ``mj_contactForce``
-        gives it or as its pyramid's edges sum to)."""
+    def _forces(self, adr: np.ndarray) -> array:
+        """Each contact's normal force (N; ``adr``: the contacts' efc_address) where ``efc_force``
+        alone does not give it (``ContactScan`` then reads ``force[c]``): as ``mj_contactForce``
+        gives it, or as its pyramid's edge forces sum to."""
         d = self.data
-        con = d.contact
-        adr = con.efc_address
-        if self._edges:
-            return con.geom, adr, con.pos, d.efc_force
-        n = d.ncon
-        forces = array("d", bytes(8 * n))
-        dims = con.dim.tolist()
+        forces = array("d", bytes(8 * d.ncon))
+        dims = d.contact.dim.tolist()
         ef = d.efc_force.tolist()
         for c, a in enumerate(adr.tolist()):
             if a < 0:
@@ -201,13 +195,18 @@ class TruthProbe:
             else:
                 mujoco.mj_contactForce(self.model, d, c, self._force6)
                 forces[c] = float(self._force6[0])
-        return con.geom, adr, con.pos, forces
+        return forces
 
     def compute(self, t_us: int, platform_tilt_deg: float) -> GroundTruth:
         """The ground truth of the data now (physics time ``t_us``, the platform at
         ``platform_tilt_deg``)."""
-        geom, adr, pos, force = self._contacts()
-        sample = self._scan.truth(geom, adr, pos, force, self._edges, platform_tilt_deg)
+        # the contacts' arrays (ncon long, made anew at each read: MuJoCo moves them), once
+        d = self.data
+        con = d.contact
+        adr = con.efc_address
+        edges = self._edges
+        force = d.efc_force if edges else self._forces(adr)
+        sample = self._scan.truth(con.geom, adr, con.pos, force, edges, platform_tilt_deg)
         return GroundTruth(t_us / US_PER_S, sample, self.joint_names)
 
     def fallen(self, tilt_deg: float, platform_tilt_deg: float) -> bool:
@@ -228,6 +227,10 @@ class TruthProbe:
 
     def foot_cop_mm(self, f: int) -> np.ndarray | None:
         """The CoP of foot index ``f`` (``FOOT_BODIES`` order; foot frame, mm), None when unloaded."""
-        geom, adr, pos, force = self._contacts()
-        cop = self._scan.foot_cop(geom, adr, pos, force, self._edges, f)
+        d = self.data
+        con = d.contact
+        adr = con.efc_address
+        edges = self._edges
+        force = d.efc_force if edges else self._forces(adr)
+        cop = self._scan.foot_cop(con.geom, adr, con.pos, force, edges, f)
         return None if cop is None else np.array(cop)
