@@ -52,7 +52,7 @@ class GroundTruth:
     Python values.
     """
 
-    __slots__ = ("t_s", "_s", "_names", "_plain", "_arrays")
+    __slots__ = ("t_s", "_s", "_names", "_plain", "_arrays", "_com_joints")
 
     t_s: float
 
@@ -63,6 +63,7 @@ class GroundTruth:
         init(self, "_names", joint_names)
         init(self, "_plain", None)
         init(self, "_arrays", None)
+        init(self, "_com_joints", None)
 
     def __setattr__(self, name: str, value: Any) -> None:
         raise AttributeError(f"GroundTruth is read-only (cannot set {name!r})")
@@ -118,15 +119,24 @@ class GroundTruth:
             object.__setattr__(self, "_arrays", got)
         return got
 
+    def _com_joints_fields(self) -> tuple[np.ndarray, dict[str, float]]:
+        got = self._com_joints
+        if got is None:
+            s = self._s
+            deg = [a * _DEG_PER_RAD for a in s.joints_rad]
+            got = (np.array(s.com), dict(zip(self._names, deg, strict=True)))
+            object.__setattr__(self, "_com_joints", got)
+        return got
+
     @property
     def com(self) -> np.ndarray:
         """(3,) whole-robot centre of mass, world."""
-        return np.array(self._s.com)
+        return self._com_joints_fields()[0]
 
     @property
     def joint_angles_deg(self) -> dict[str, float]:
         """Every hinge joint's angle, joint frame, degrees."""
-        return dict(zip(self._names, [a * _DEG_PER_RAD for a in self._s.joints_rad], strict=True))
+        return self._com_joints_fields()[1]
 
     @property
     def pad_forces_n(self) -> dict[str, np.ndarray]:
