@@ -213,3 +213,42 @@ def test_the_scan_is_compiled_with_the_rest_of_the_core():
     """Where the core runs compiled (the clock), the scan is compiled too: the comparisons above
     then compare the C code with its source."""
     assert is_compiled(contacts) == (core_kind() == "compiled")
+
+
+def test_the_per_contact_force_path_gives_the_same_truth():
+    """A model where not every geom has condim 3 takes each contact's normal force in Python
+    (``TruthProbe._forces``) instead of summing ``efc_force`` in the scan: a standing robot's
+    truth is the same either way."""
+    import mujoco
+
+    from humanoid_twin.plant.plant import PAD_SUFFIXES, Plant
+    from humanoid_twin.plant.truth import FOOT_BODIES, TruthProbe
+
+    p = Plant(seed=0)
+    p.advance_to(300_000)
+    m, d = p.model, p.data
+
+    def probe() -> TruthProbe:
+        def oid(kind, name):
+            return mujoco.mj_name2id(m, kind, name)
+        pads = [-1] * m.ngeom
+        for f, foot in enumerate(FOOT_BODIES):
+            for k, suffix in enumerate(PAD_SUFFIXES):
+                pads[oid(mujoco.mjtObj.mjOBJ_GEOM, f"{foot}_pad_{suffix}")] = 4 * f + k
+        hinges = [j for j in range(m.njnt) if m.jnt_type[j] == mujoco.mjtJoint.mjJNT_HINGE]
+        return TruthProbe(m, d, trunk=oid(mujoco.mjtObj.mjOBJ_BODY, "trunk"),
+                          sole_sites=[oid(mujoco.mjtObj.mjOBJ_SITE, f"{foot}_sole") for foot in FOOT_BODIES],
+                          pad_list=pads, joint_names=[m.joint(j).name for j in hinges],
+                          joint_qadr=np.array([m.jnt_qposadr[j] for j in hinges], dtype=np.int64))
+
+    def figures(pr: TruthProbe):
+        t = pr.compute(p.t_us, 0.0)
+        return _bits([t.trunk_tilt_deg, t.cop_margin_mm, t.total_normal_force_n, t.fell, list(t.plain()),
+                      [pr.foot_cop_mm(f).tolist() for f in range(2)]])
+
+    fast = figures(probe())
+    visual = int(np.flatnonzero((m.geom_contype == 0) & (m.geom_conaffinity == 0))[0])
+    m.geom_condim[visual] = 1                       # a geom that never touches anything: same physics
+    slow = figures(probe())
+    assert d.ncon >= 4 and fast == slow
+    assert 20.0 < p.truth().cop_margin_mm == float.fromhex(fast[1])
