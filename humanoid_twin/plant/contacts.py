@@ -10,7 +10,8 @@ is MjData's for the plant's whole life once (``xpos``, ``xmat``, ``subtree_com``
 ``site_xmat``, ``qpos``), and each call the contacts' arrays of that instant (``geom``,
 ``efc_address``, ``pos``: ``ncon`` long) and the constraint forces (``efc_force``), which MuJoCo
 moves as the number of contacts changes. (Interpreted, each value read is turned into a Python
-float at once, as in ``sensors.py``.)
+float at once, as in ``sensors.py``; the contacts' arrays may then be nested lists, as
+``TruthProbe`` hands them over: a numpy scalar a value costs more than one ``tolist`` an array.)
 
 The figures are the same numbers on both cores: the same floating-point operations in the same
 order (tests/test_truth_core.py). The hull and the margin are the algorithms of
@@ -226,7 +227,7 @@ class ContactScan:
         their number. The normal force of contact c: with ``edges`` (a pyramidal cone, every
         contact of dim 3) the sum of its 4 pyramid edge forces at ``force[efc_address]``
         (``efc_force``), else ``force[c]`` (given per contact)."""
-        n = geom.shape[0]
+        n = len(geom)
         if n > self._cap:
             self._grow(n)
         pad = self._pad
@@ -237,8 +238,8 @@ class ContactScan:
         pz = self._pz
         k = 0
         for c in range(n):
-            p = pad[geom[c, 0]]
-            q = pad[geom[c, 1]]
+            p = pad[geom[c][0]]
+            q = pad[geom[c][1]]
             if q > p:
                 p = q
             a = adr[c]
@@ -251,9 +252,9 @@ class ContactScan:
             if f > 0.0:
                 pid[k] = p
                 fn[k] = f
-                px[k] = float(pos[c, 0])
-                py[k] = float(pos[c, 1])
-                pz[k] = float(pos[c, 2])
+                px[k] = float(pos[c][0])
+                py[k] = float(pos[c][1])
+                pz[k] = float(pos[c][2])
                 k += 1
         return k
 

@@ -20,6 +20,8 @@ import mujoco
 import numpy as np
 
 from humanoid_twin.clock import US_PER_S
+from humanoid_twin.core import is_compiled
+from humanoid_twin.plant import contacts
 from humanoid_twin.plant.contacts import ContactScan, TruthSample
 from humanoid_twin.plant.sensors import DEG_PER_RAD as _DEG_PER_RAD
 
@@ -184,6 +186,9 @@ class TruthProbe:
         # then each contact's normal force is the sum of its 4 pyramid edge forces in efc_force
         self._edges = self._pyramidal and (model.npair == 0 and model.nflex == 0
                                            and bool((model.geom_condim == 3).all()))
+        # interpreted, the scan reads the contacts' arrays as lists: one tolist an array costs less
+        # than a numpy scalar a value (compiled, it reads them in place)
+        self._as_lists = not is_compiled(contacts)
         d = data
         self._scan = ContactScan(array("i", pad_list), self.sole_sites, trunk,
                                  np.ascontiguousarray(joint_qadr, dtype=np.int64), d.xpos, d.xmat,
@@ -216,7 +221,11 @@ class TruthProbe:
         adr = con.efc_address
         edges = self._edges
         force = d.efc_force if edges else self._forces(adr)
-        sample = self._scan.truth(con.geom, adr, con.pos, force, edges, platform_tilt_deg)
+        if self._as_lists:
+            sample = self._scan.truth(con.geom.tolist(), adr.tolist(), con.pos.tolist(), force.tolist(),
+                                      edges, platform_tilt_deg)
+        else:
+            sample = self._scan.truth(con.geom, adr, con.pos, force, edges, platform_tilt_deg)
         return GroundTruth(t_us / US_PER_S, sample, self.joint_names)
 
     def fallen(self, tilt_deg: float, platform_tilt_deg: float) -> bool:
@@ -242,5 +251,9 @@ class TruthProbe:
         adr = con.efc_address
         edges = self._edges
         force = d.efc_force if edges else self._forces(adr)
-        cop = self._scan.foot_cop(con.geom, adr, con.pos, force, edges, f)
+        if self._as_lists:
+            cop = self._scan.foot_cop(con.geom.tolist(), adr.tolist(), con.pos.tolist(), force.tolist(),
+                                      edges, f)
+        else:
+            cop = self._scan.foot_cop(con.geom, adr, con.pos, force, edges, f)
         return None if cop is None else np.array(cop)
