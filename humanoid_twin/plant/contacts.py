@@ -4,14 +4,15 @@ polygon (convex hull) and the CoP margin, the trunk's tilt and the fall test, th
 platform.
 
 Part of the compiled core (contacts.pxd): one call per sample reads MjData's arrays through C
-memoryviews and does every loop in C, where the interpreted module made a Python object of
-every number it read. No MuJoCo import here: :class:`ContactScan` takes the arrays whose memory
-is MjData's for the plant's whole life once (``xpos``, ``xmat``, ``subtree_com``, ``site_xpos``,
-``site_xmat``, ``qpos``), and each call the contacts' arrays of that instant (``geom``,
-``efc_address``, ``pos``: ``ncon`` long) and the constraint forces (``efc_force``), which MuJoCo
-moves as the number of contacts changes. (Interpreted, each value read is turned into a Python
-float at once, as in ``sensors.py``; the contacts' arrays may then be nested lists, as
-``TruthProbe`` hands them over: a numpy scalar a value costs more than one ``tolist`` an array.)
+memoryviews and does every loop in C, where the former truth (plain Python in truth.py) made a
+Python object of every number it read. No MuJoCo import here: :class:`ContactScan` takes once
+the arrays whose memory is MjData's for the plant's whole life (``xpos``, ``xmat``,
+``subtree_com``, ``site_xpos``, ``site_xmat``, ``qpos``), and at each call the contacts' arrays
+of that instant (``geom``, ``efc_address``, ``pos``: ``ncon`` long) and the constraint forces
+(``efc_force``), which MuJoCo moves as the number of contacts changes. (Interpreted, each
+value read is turned into a Python float at once, as in ``sensors.py``; the contacts' arrays
+may then be nested lists, as ``TruthProbe`` hands them over: a numpy scalar a value costs more
+than one ``tolist`` an array.)
 
 The figures are the same numbers on both cores: the same floating-point operations in the same
 order (tests/test_truth_core.py). The hull and the margin are the algorithms of
@@ -190,7 +191,7 @@ class ContactScan:
     """``ContactScan(pad_of_geom, sole_sites, trunk, joint_qadr, xpos, xmat, subtree_com,
     site_xpos, site_xmat, qpos)``: per geom its pad index 0..7 (foot * 4 + table-12 index) or -1
     (an ``array('i')``), the two feet's sole sites, the trunk's body id, the hinge joints' qpos
-    addresses (an ``array('q')``), and MjData's arrays of those names."""
+    addresses (int64), and MjData's arrays of those names."""
 
     def __init__(self, pad_of_geom: Any, sole_sites: Any, trunk: int, joint_qadr: Any, xpos: Any, xmat: Any,
                  subtree_com: Any, site_xpos: Any, site_xmat: Any, qpos: Any) -> None:
