@@ -87,13 +87,17 @@ class Monitor:
         if gt.fell and not self.fell:
             self.fell = True
             self.fell_at_s = twin.now_s
-        self.trunk_tilt_max_deg = max(self.trunk_tilt_max_deg, gt.trunk_tilt_deg)
+        tilt = gt.trunk_tilt_deg
+        if tilt > self.trunk_tilt_max_deg:          # max(): NaN leaves it
+            self.trunk_tilt_max_deg = tilt
         # -inf when nothing touches the platform (the robot is in the air or lying)
-        self.cop_margin_min_mm = min(self.cop_margin_min_mm, gt.cop_margin_mm)
+        margin = gt.cop_margin_mm
+        if margin < self.cop_margin_min_mm:         # min(): NaN leaves it
+            self.cop_margin_min_mm = margin
         # how far a foot standing on the platform has slid since it was set down (in the
         # platform's frame): the first sample, or the first sample after it was lifted (more
         # than SOLE_ON_SURFACE_MM above the surface: a step is not a slide)
-        soles = twin.plant.soles_on_surface_mm()
+        soles = gt.soles_on_surface_mm
         ref = self._soles0
         if ref is None:
             ref = self._soles0 = [None] * len(soles)
