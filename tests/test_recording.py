@@ -38,6 +38,8 @@ DURATION_US = 3_000_000
 PERIOD_US = 20_000
 ROWS = DURATION_US // PERIOD_US + 1        # samples at 0, 20 ms, ..., 3.0 s
 KNEE_DEG = 10
+# the digest of the driven run's recording (test_recorded_content_is_pinned)
+RECORDED_CONTENT_SHA256 = "0f8a6ba4893c884015e5d334fb9ce4d2f1ef66575f1a4fe6e8fe74c8100a4d66"
 
 
 def _request(port, op: int, scu: int, param: int, d1: int = 0, d2: int = 0, d3: int = 0) -> bytes:
@@ -205,6 +207,39 @@ def test_rrd_passes_rerun_s_own_verification(run, tmp_path):
     rec.disconnect()
     with pytest.raises(RrdReadError, match="Vec3D"):
         verify_rrd(bad)
+
+
+def _content_digest(path: pathlib.Path) -> str:
+    """SHA-256 of everything a recording holds on ``sim_time`` and statically: per entity and
+    component, its rows (time, value) in time order, whatever the chunks (rerun's own reader)."""
+    import hashlib
+    import json
+
+    from rerun.chunk import RrdReader
+
+    cells: dict[str, list] = {}
+    for c in RrdReader(path).stream():
+        if c.entity_path.startswith("/__"):
+            continue
+        rb = c.to_record_batch()
+        names = rb.schema.names
+        t = (rb.column(names.index("sim_time")).cast("int64").to_pylist() if "sim_time" in names
+             else [-1] * rb.num_rows)
+        for k, name in enumerate(names):
+            if ":" in name:
+                cells.setdefault(f"{c.entity_path} {name} {c.is_static}", []).extend(
+                    zip(t, rb.column(k).to_pylist(), strict=True))
+    for rows in cells.values():
+        rows.sort(key=lambda r: (r[0], json.dumps(r[1])))
+    return hashlib.sha256(json.dumps(cells, sort_keys=True).encode()).hexdigest()
+
+
+def test_recorded_content_is_pinned(run):
+    """Every value the driven run's recording holds (joints, true angles and their speeds, feet,
+    CoPs, bus rates across the chunk boundary, counters, poses, world points, static content),
+    bitwise: the recorder's sampling and chunking may change, what it records may not unnoticed.
+    A deliberate change of the recording updates this digest (and says so in docs/recording.md)."""
+    assert _content_digest(run[0]) == RECORDED_CONTENT_SHA256
 
 
 def test_rrd_rows_are_on_sim_time_and_sent_in_chunks(run):
