@@ -36,6 +36,7 @@ import threading
 import time
 import uuid
 from collections.abc import Iterable, Sequence
+from itertools import chain
 from typing import Any
 
 import numpy as np
@@ -542,14 +543,16 @@ class Recorder:
         # support polygon: one line strip per row with 2 points or more (closed with more than
         # 2), none for the others; all rows at once
         polys = self._poly[:n]
-        k = np.array([len(p) for p in polys], dtype=np.intp)     # each row's hull points
+        k = np.fromiter(map(len, polys), dtype=np.intp, count=n)    # each row's hull points
         has = k >= 2
         m = np.where(has, k + (k > 2), 0)                           # its strip's points
         strip_offsets = np.zeros(n + 1, dtype=np.int32)
         np.cumsum(has, out=strip_offsets[1:])
         total = int(m.sum())
         if total:
-            hulls = np.array([pt for poly in polys for pt in poly], dtype=float)   # every row's points
+            # every row's points, (x, y) each, read as one stream of floats
+            hulls = np.fromiter(chain.from_iterable(chain.from_iterable(polys)), dtype=float,
+                                count=2 * int(k.sum())).reshape(-1, 2)
             first = np.cumsum(k) - k                                # each row's first point in them
             row = np.repeat(np.arange(n), m)                        # the row of each strip point
             j = np.arange(total) - np.repeat(np.cumsum(m) - m, m)   # its place in its strip
