@@ -242,6 +242,37 @@ def test_recorded_content_is_pinned(run):
     assert _content_digest(run[0]) == RECORDED_CONTENT_SHA256
 
 
+def test_bus_rates_computed_per_chunk_are_the_per_row_rates(twin):
+    """The bus rates are derived a chunk at a time: whatever the chunk boundaries, and with rows
+    taken twice at one instant (a repeat keeps its rates; the next ones run from the instant's
+    first row), they are what a per-row reader keeps (the previous counters, rate = frames
+    since / dt, load = 100 * busy us since / dt)."""
+    from humanoid_twin.recording.columns import _BusRates
+
+    t = np.array([0, 20_000, 40_000, 40_000, 60_000, 100_000, 100_000, 100_000, 120_000], dtype=np.int64)
+    raw = np.array([[5, 0], [60, 700], [100, 900], [130, 950], [190, 1300], [250, 2000], [260, 2100],
+                    [270, 2200], [330, 2500]], dtype=np.float64)
+    want, at, base = [], None, None
+    for k in range(len(t)):              # the per-row reader
+        if k == 0:
+            want.append((0.0, 0.0))
+        elif t[k] == at:
+            want.append(want[-1])
+            continue
+        else:
+            dt = int(t[k] - at)
+            want.append(((raw[k, 0] - base[0]) * (1_000_000 / dt), 100.0 * (raw[k, 1] - base[1]) / dt))
+        at, base = t[k], raw[k]
+    rates = _BusRates(twin)
+    for cuts in ([9], [1, 8], [3, 6], [4, 5], [6, 3], [2, 2, 2, 3]):
+        got, state, k = [], None, 0
+        for m in cuts:
+            out, state = rates.finish(t[k:k + m], raw[k:k + m], state)
+            got += [tuple(r) for r in out.tolist()]
+            k += m
+        assert got == want, cuts
+
+
 def test_rrd_rows_are_on_sim_time_and_sent_in_chunks(run):
     rrd, _, rec, _, _ = run
     t, _ = read_rrd_scalars(rrd, "robot/trunk_tilt_deg")
