@@ -25,7 +25,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from operator import attrgetter, itemgetter
+from operator import itemgetter
 from typing import Any
 
 import numpy as np
@@ -273,20 +273,16 @@ def _finite(x: float) -> float:
     return x if math.isfinite(x) else _NAN
 
 
-_REF = attrgetter("ref")
-_POS = attrgetter("pos")
-_VEL = attrgetter("vel")
-_CURRENT = attrgetter("current")
-
-
 class _BoardRows:
     """A board's every-sample columns as one batch group: per row, the firmware's raw values
-    (reference, trajectory, commanded, measured position and speed, current: each for the N
+    (reference, trajectory, commanded, measured position and speed, current: each for the three
     servos), the true joint angles (unsigned, as the truth has them) and the task time, then
     the IMU's and the foot's values; at chunk time, the recorded layout, with the true angles in
     the servo frame and their finite-difference speed."""
 
     def __init__(self, scu: int, slave: Any) -> None:
+        if N_SERVOS != 3:
+            raise RuntimeError(f"the recorder reads a board's 3 servos unrolled, the hardware has {N_SERVOS}")
         self.slave = slave
         joints = SERVO_JOINTS[scu]
         self.joints = itemgetter(*joints)
@@ -320,9 +316,10 @@ class _BoardRows:
 
     def read(self, t: Tick) -> Sequence[float]:
         slave = self.slave
-        sensed = slave.sensors.servo
-        row = [*map(_REF, slave.actuators.servo), *slave.traj.position, *slave.commanded,
-               *map(_POS, sensed), *map(_VEL, sensed), *map(_CURRENT, sensed),
+        a0, a1, a2 = slave.actuators.servo          # the board's three servos, unrolled
+        s0, s1, s2 = slave.sensors.servo
+        row = [a0.ref, a1.ref, a2.ref, *slave.traj.position, *slave.commanded,
+               s0.pos, s1.pos, s2.pos, s0.vel, s1.vel, s2.vel, s0.current, s1.current, s2.current,
                *self.joints(t.truth.joint_angles_deg), slave.task_us]
         for part in self.parts:
             row += part(t)
