@@ -242,6 +242,20 @@ def test_recorded_content_is_pinned(run):
     assert _content_digest(run[0]) == RECORDED_CONTENT_SHA256
 
 
+def test_a_derived_column_read_alone_gives_its_recorded_last_row(run):
+    """A column of a batch group read alone (its own ``read`` on the last sample's tick) gives
+    what the recording holds for that row: the true angle and its speed, the task time, the
+    bus rates, derived from the raw values taken then."""
+    from humanoid_twin.recording.paths import scu_path, servo_path
+
+    rrd, _, rec, _, _ = run
+    cols = {c.path: c for c in rec.columns}
+    for path in (f"{servo_path(1, 2)}/position", f"{servo_path(1, 2)}/velocity", f"{scu_path(2)}/task_ms",
+                 f"{scu_path(5)}/imu/roll", "bus/can/frames_per_s", "bus/can/load_percent"):
+        _, v = read_rrd_scalars(rrd, path)
+        assert np.atleast_1d(v[-1]).tolist() == list(cols[path].read(rec._tick)), path
+
+
 def test_bus_rates_computed_per_chunk_are_the_per_row_rates(twin):
     """The bus rates are derived a chunk at a time: whatever the chunk boundaries, and with rows
     taken twice at one instant (a repeat keeps its rates; the next ones run from the instant's
