@@ -123,8 +123,14 @@ def test_extra_columns_are_recorded_and_slow_ones_read_only_on_their_rows(tmp_pa
         slow_calls.append(t.now_us)
         return (float(len(slow_calls)), -1.0)
 
+    def since(t, raw, state):       # a batch group's finish: ms since its row before (0 at the first)
+        before = np.concatenate(([t[0] if state is None else state], t[:-1]))
+        return ((t - before) / 1000.0)[:, None], t[-1]
+
+    batch = ColumnGroup(lambda t: (t.now_us,), every=5, finish=since, raw_width=1)
     extra = [Column("user/fast", ("t ms",), "ms", fast),
-             Column("user/slow", ("calls", "minus one"), "count", slow, every=5)]
+             Column("user/slow", ("calls", "minus one"), "count", slow, every=5),
+             batch.column("user/since", ("ms since",), "ms")]
     rrd = tmp_path / "extra.rrd"
     with Twin(seed=0) as twin, Recorder(rrd, twin, columns=extra, chunk_s=0.3) as rec:
         twin.advance_to(1_000_000)
@@ -136,6 +142,8 @@ def test_extra_columns_are_recorded_and_slow_ones_read_only_on_their_rows(tmp_pa
     t, v = read_rrd_scalars(rrd, "user/slow")
     assert np.allclose(t, np.arange(11) * 0.1)
     assert v[:, 0].tolist() == list(range(1, 12)) and set(v[:, 1]) == {-1.0}
+    t, v = read_rrd_scalars(rrd, "user/since")      # derived per chunk (3 rows a chunk), every 5th row
+    assert np.allclose(t, np.arange(11) * 0.1) and v.tolist() == [0.0] + [100.0] * 10
 
 
 def test_a_column_group_is_read_once_a_row_and_each_column_alone_reads_its_slice(tmp_path):

@@ -491,14 +491,13 @@ class Recorder:
         vals = np.empty((n, self._ncols))
         vals[:, self._plain_dst] = buf[:, self._plain_src]
         for group, b0, f0 in self._batch:
-            raw = buf[:, b0:b0 + group.raw_width]
-            rows = slice(None) if group.every == 1 else self._k[:n] % group.every == 0
-            if group.every != 1:
+            rows: slice | np.ndarray = slice(None)
+            if group.every != 1:          # only the rows the group is written on
+                rows = self._k[:n] % group.every == 0
                 if not rows.any():
                     continue
-                out, state = group.finish(t[rows], raw[rows], self._batch_state.get(group))
-            else:
-                out, state = group.finish(t, raw, self._batch_state.get(group))
+            raw = buf[rows, b0:b0 + group.raw_width]
+            out, state = group.finish(t[rows], raw, self._batch_state.get(group))
             vals[rows, f0:f0 + group.width] = out
             self._batch_state[group] = state
         return vals
