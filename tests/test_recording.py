@@ -38,6 +38,8 @@ DURATION_US = 3_000_000
 PERIOD_US = 20_000
 ROWS = DURATION_US // PERIOD_US + 1        # samples at 0, 20 ms, ..., 3.0 s
 KNEE_DEG = 10
+# the digest of the driven run's recording (test_recorded_content_is_pinned)
+RECORDED_CONTENT_SHA256 = "0f8a6ba4893c884015e5d334fb9ce4d2f1ef66575f1a4fe6e8fe74c8100a4d66"
 
 
 def _request(port, op: int, scu: int, param: int, d1: int = 0, d2: int = 0, d3: int = 0) -> bytes:
@@ -121,8 +123,14 @@ def test_extra_columns_are_recorded_and_slow_ones_read_only_on_their_rows(tmp_pa
         slow_calls.append(t.now_us)
         return (float(len(slow_calls)), -1.0)
 
+    def since(t, raw, state):       # a batch group's finish: ms since its row before (0 at the first)
+        before = np.concatenate(([t[0] if state is None else state], t[:-1]))
+        return ((t - before) / 1000.0)[:, None], t[-1]
+
+    batch = ColumnGroup(lambda t: (t.now_us,), every=5, finish=since, raw_width=1)
     extra = [Column("user/fast", ("t ms",), "ms", fast),
-             Column("user/slow", ("calls", "minus one"), "count", slow, every=5)]
+             Column("user/slow", ("calls", "minus one"), "count", slow, every=5),
+             batch.column("user/since", ("ms since",), "ms")]
     rrd = tmp_path / "extra.rrd"
     with Twin(seed=0) as twin, Recorder(rrd, twin, columns=extra, chunk_s=0.3) as rec:
         twin.advance_to(1_000_000)
@@ -134,6 +142,8 @@ def test_extra_columns_are_recorded_and_slow_ones_read_only_on_their_rows(tmp_pa
     t, v = read_rrd_scalars(rrd, "user/slow")
     assert np.allclose(t, np.arange(11) * 0.1)
     assert v[:, 0].tolist() == list(range(1, 12)) and set(v[:, 1]) == {-1.0}
+    t, v = read_rrd_scalars(rrd, "user/since")      # derived per chunk (3 rows a chunk), every 5th row
+    assert np.allclose(t, np.arange(11) * 0.1) and v.tolist() == [0.0] + [100.0] * 10
 
 
 def test_a_column_group_is_read_once_a_row_and_each_column_alone_reads_its_slice(tmp_path):
@@ -205,6 +215,84 @@ def test_rrd_passes_rerun_s_own_verification(run, tmp_path):
     rec.disconnect()
     with pytest.raises(RrdReadError, match="Vec3D"):
         verify_rrd(bad)
+
+
+def _content_digest(path: pathlib.Path) -> str:
+    """SHA-256 of everything a recording holds on ``sim_time`` and statically: per entity and
+    component, its rows (time, value) in time order, whatever the chunks (rerun's own reader)."""
+    import hashlib
+    import json
+
+    from rerun.chunk import RrdReader
+
+    cells: dict[str, list] = {}
+    for c in RrdReader(path).stream():
+        if c.entity_path.startswith("/__"):
+            continue
+        rb = c.to_record_batch()
+        names = rb.schema.names
+        t = (rb.column(names.index("sim_time")).cast("int64").to_pylist() if "sim_time" in names
+             else [-1] * rb.num_rows)
+        for k, name in enumerate(names):
+            if ":" in name:
+                cells.setdefault(f"{c.entity_path} {name} {c.is_static}", []).extend(
+                    zip(t, rb.column(k).to_pylist(), strict=True))
+    for rows in cells.values():
+        rows.sort(key=lambda r: (r[0], json.dumps(r[1])))
+    return hashlib.sha256(json.dumps(cells, sort_keys=True).encode()).hexdigest()
+
+
+def test_recorded_content_is_pinned(run):
+    """Every value the driven run's recording holds (joints, true angles and their speeds, feet,
+    CoPs, bus rates across the chunk boundary, counters, poses, world points, static content),
+    bitwise: the recorder's sampling and chunking may change, what it records may not unnoticed.
+    A deliberate change of the recording updates this digest (and says so in docs/recording.md)."""
+    assert _content_digest(run[0]) == RECORDED_CONTENT_SHA256
+
+
+def test_a_derived_column_read_alone_gives_its_recorded_last_row(run):
+    """A column of a batch group read alone (its own ``read`` on the last sample's tick) gives
+    what the recording holds for that row: the true angle and its speed, the task time, the
+    bus rates, derived from the raw values taken then."""
+    from humanoid_twin.recording.paths import scu_path, servo_path
+
+    rrd, _, rec, _, _ = run
+    cols = {c.path: c for c in rec.columns}
+    for path in (f"{servo_path(1, 2)}/position", f"{servo_path(1, 2)}/velocity", f"{scu_path(2)}/task_ms",
+                 f"{scu_path(5)}/imu/roll", "bus/can/frames_per_s", "bus/can/load_percent"):
+        _, v = read_rrd_scalars(rrd, path)
+        assert np.atleast_1d(v[-1]).tolist() == list(cols[path].read(rec._tick)), path
+
+
+def test_bus_rates_computed_per_chunk_are_the_per_row_rates(twin):
+    """The bus rates are derived a chunk at a time: whatever the chunk boundaries, and with rows
+    taken twice at one instant (a repeat keeps its rates; the next ones run from the instant's
+    first row), they are what a per-row reader keeps (the previous counters, rate = frames
+    since / dt, load = 100 * busy us since / dt)."""
+    from humanoid_twin.recording.columns import _BusRates
+
+    t = np.array([0, 20_000, 40_000, 40_000, 60_000, 100_000, 100_000, 100_000, 120_000], dtype=np.int64)
+    raw = np.array([[5, 0], [60, 700], [100, 900], [130, 950], [190, 1300], [250, 2000], [260, 2100],
+                    [270, 2200], [330, 2500]], dtype=np.float64)
+    want, at, base = [], None, None
+    for k in range(len(t)):              # the per-row reader
+        if k == 0:
+            want.append((0.0, 0.0))
+        elif t[k] == at:
+            want.append(want[-1])
+            continue
+        else:
+            dt = int(t[k] - at)
+            want.append(((raw[k, 0] - base[0]) * (1_000_000 / dt), 100.0 * (raw[k, 1] - base[1]) / dt))
+        at, base = t[k], raw[k]
+    rates = _BusRates(twin)
+    for cuts in ([9], [1, 8], [3, 6], [4, 5], [6, 3], [2, 2, 2, 3]):
+        got, state, k = [], None, 0
+        for m in cuts:
+            out, state = rates.finish(t[k:k + m], raw[k:k + m], state)
+            got += [tuple(r) for r in out.tolist()]
+            k += m
+        assert got == want, cuts
 
 
 def test_rrd_rows_are_on_sim_time_and_sent_in_chunks(run):

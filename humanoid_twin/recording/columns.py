@@ -9,7 +9,10 @@ one table: the static series styles, the buffer layout (one block of buffer colu
 
 A :class:`ColumnGroup` reads several consecutive columns of the table in one call (a board's
 servos, a foot, the robot's balance): the recorder calls its ``read`` once per row for all of
-them, each of its columns' own ``read`` takes its slice of it.
+them, each of its columns' own ``read`` takes its slice of it. A group with a ``finish`` reads
+only raw values per row (a board's firmware values and true joint angles, the bus counters) and
+derives its columns from them in numpy, a chunk of rows at a time (the true servo angles and
+speeds, the bus rates): the same numbers, computed once per chunk instead of once per row.
 
 The readers only read: Slave databases and firmware state, Master and bus counters, and the
 plant's ground truth (one ``truth()`` per tick, shared through the :class:`Tick`). They never
@@ -22,7 +25,10 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from operator import itemgetter
 from typing import Any
+
+import numpy as np
 
 from humanoid_twin.clock import US_PER_S
 from humanoid_twin.hardware import (
@@ -104,6 +110,12 @@ class Column:
         return len(self.names)
 
 
+# ``finish(t_us, raw, state) -> (values, state)``: a batch group's columns for rows of raw values
+# taken at times ``t_us`` (int64, increasing), ``state``: what the previous call left (None at the
+# first rows)
+Finish = Callable[[np.ndarray, np.ndarray, Any], tuple[np.ndarray, Any]]
+
+
 class ColumnGroup:
     """Consecutive columns of the table read together: ``read(tick)`` returns the values of all
     of them, flat, in the order they were added with :meth:`column`; all share one ``every``.
@@ -111,15 +123,24 @@ class ColumnGroup:
     The recorder calls ``read`` once per row for the whole group (one Python call instead of
     one per column); each column's own ``read`` calls it and takes its slice (for a reader of
     that one column alone).
+
+    With ``finish`` (a batch group), ``read(tick)`` returns ``raw_width`` raw values instead, and
+    ``finish(t_us, raw, state)`` derives the columns' values from rows of them (numpy arrays:
+    the rows' times and raw values), returning them ``(rows, width)`` and the state the next
+    rows continue from (None before the first row): differences between rows (speeds, rates)
+    are computed a chunk at a time.
     """
 
-    __slots__ = ("read", "every", "columns", "width")
+    __slots__ = ("read", "every", "columns", "width", "finish", "raw_width")
 
-    def __init__(self, read: Callable[[Tick], Sequence[float]], every: int = 1) -> None:
+    def __init__(self, read: Callable[[Tick], Sequence[float]], every: int = 1, *,
+                 finish: Finish | None = None, raw_width: int = 0) -> None:
         self.read = read
         self.every = every
         self.columns: list[Column] = []
         self.width = 0
+        self.finish = finish
+        self.raw_width = raw_width
 
     def column(self, path: str, names: tuple[str, ...], unit: str, colors: tuple[RGB, ...] | None = None,
                sparse: bool = False) -> Column:
@@ -129,6 +150,32 @@ class ColumnGroup:
         col = Column(path, names, unit, _GroupSlice(self, start, self.width), colors, sparse, self.every)
         self.columns.append(col)
         return col
+
+    def values(self, t: Tick) -> list[float]:
+        """The values of all the group's columns at tick ``t`` (a batch group: from the raw
+        values the recorder took at ``t`` and at the sample before, as in the recording)."""
+        if self.finish is None:
+            return list(self.read(t))
+        raw = t.raw.get(self)
+        if raw is None:
+            raw = self.read(t)
+        prev = t.prev
+        state = None
+        if prev is not None and self in prev.raw:     # the state the sample before left
+            _, state = self.finish(np.array([prev.now_us], dtype=np.int64),
+                                   np.array([prev.raw[self]], dtype=np.float64), _prev_state(prev, self))
+        out, _ = self.finish(np.array([t.now_us], dtype=np.int64), np.array([raw], dtype=np.float64), state)
+        return out[0].tolist()
+
+
+def _prev_state(t: Tick, group: ColumnGroup) -> Any:
+    """The state before ``t``'s row of a batch group, from the raw values of the tick before."""
+    prev = t.prev
+    if prev is None or group not in prev.raw:
+        return None
+    _, state = group.finish(np.array([prev.now_us], dtype=np.int64),
+                            np.array([prev.raw[group]], dtype=np.float64), None)
+    return state
 
 
 class _GroupSlice:
@@ -142,40 +189,68 @@ class _GroupSlice:
         self.stop = stop
 
     def __call__(self, t: Tick) -> Sequence[float]:
-        return list(self.group.read(t))[self.start:self.stop]
+        return self.group.values(t)[self.start:self.stop]
 
 
-def group_reader(cols: Sequence[Column], k: int) -> tuple[Callable[[Tick], Sequence[float]], int]:
+def group_reader(cols: Sequence[Column], k: int) -> tuple[Callable[[Tick], Sequence[float]], int,
+                                                         ColumnGroup | None]:
     """The reader of ``cols[k:]``'s first values: the whole group's ``read`` when ``cols[k]`` opens
-    a :class:`ColumnGroup` whose columns all follow it in ``cols``, else ``cols[k].read``; and how
-    many columns of ``cols`` it reads."""
+    a :class:`ColumnGroup` whose columns all follow it in ``cols``, else ``cols[k].read``; how
+    many columns of ``cols`` it reads; and the group (None for one column's own ``read``)."""
     r = cols[k].read
     if isinstance(r, _GroupSlice) and r.start == 0:
         group = r.group
         m = len(group.columns)
         if len(cols) - k >= m and all(a is b for a, b in zip(cols[k:k + m], group.columns, strict=True)):
-            return group.read, m
-    return r, 1
+            return group.read, m, group
+    return r, 1, None
 
 
 class Tick:
     """What every reader of one sample shares: the time, the ground truth (read once), the
     true servo angles and their finite-difference speed (``true_deg`` / ``true_vel``, keyed by
-    ``(scu, servo)``; as lists in :func:`servo_keys` order: ``true`` / ``vel``), and the per-tick
-    rates' bases."""
+    ``(scu, servo)``; as lists in :func:`servo_keys` order: ``true`` / ``vel``; computed on
+    first read), and the per-tick rates' bases. ``prev``: the sample before (None at the first;
+    a tick keeps the one before it only while it is one of the last two), ``raw``: the raw
+    values of the batch groups read at this sample (by group)."""
 
-    __slots__ = ("twin", "now_us", "dt_us", "truth", "true", "vel", "per_s", "_signs", "_dicts")
+    __slots__ = ("twin", "now_us", "dt_us", "truth", "per_s", "prev", "raw", "_signs", "_true", "_vel",
+                 "_dicts")
 
     def __init__(self, twin: Any) -> None:
         self.twin = twin
         self.now_us = twin.clock.now_us
         self.dt_us = 0
         self.truth: Any = None
-        self.true: list[float] = []
-        self.vel: list[float] = []
         self.per_s = 0.0
+        self.prev: Tick | None = None
+        self.raw: dict[ColumnGroup, Sequence[float]] = {}
         self._signs: Sequence[tuple[tuple[int, int], str, int]] = ()
+        self._true: list[float] | None = None
+        self._vel: list[float] | None = None
         self._dicts: tuple[dict[tuple[int, int], float], dict[tuple[int, int], float]] | None = None
+
+    @property
+    def true(self) -> list[float]:
+        """True shaft angle (servo frame, degrees) of each recorded servo, :func:`servo_keys` order."""
+        if self._true is None:
+            joints = self.truth.joint_angles_deg
+            self._true = [sign * joints[joint] for _, joint, sign in self._signs]
+        return self._true
+
+    @property
+    def vel(self) -> list[float]:
+        """Their change since the previous sample, per PWM period (0 at the first sample)."""
+        if self._vel is None:
+            prev = self.prev
+            if prev is None:
+                self._vel = [0.0] * len(self.true)
+            else:
+                dt = self.dt_us
+                per_tick = PWM_PERIOD_US / dt if dt > 0 else 0.0
+                self._vel = [(deg - before) * per_tick
+                             for deg, before in zip(self.true, prev.true, strict=True)]
+        return self._vel
 
     def _by_key(self) -> tuple[dict[tuple[int, int], float], dict[tuple[int, int], float]]:
         if self._dicts is None:
@@ -198,32 +273,89 @@ def _finite(x: float) -> float:
     return x if math.isfinite(x) else _NAN
 
 
-def _board_columns(scu: int, slave: Any, first: int) -> list[Column]:
-    """The columns of board ``scu``; ``first``: its servo 0's place in the tick's ``true`` list."""
+class _BoardRows:
+    """A board's every-sample columns as one batch group: per row, the firmware's raw values
+    (reference, trajectory, commanded, measured position and speed, current: each for the three
+    servos), the true joint angles (unsigned, as the truth has them) and the task time, then
+    the IMU's and the foot's values; at chunk time, the recorded layout, with the true angles in
+    the servo frame and their finite-difference speed."""
+
+    def __init__(self, scu: int, slave: Any) -> None:
+        if N_SERVOS != 3:
+            raise RuntimeError(f"the recorder reads a board's 3 servos unrolled, the hardware has {N_SERVOS}")
+        self.slave = slave
+        joints = SERVO_JOINTS[scu]
+        self.joints = itemgetter(*joints)
+        self.signs = np.array([SERVO_SIGN[j] for j in joints], dtype=np.float64)
+        self.parts: list[Callable[[Tick], Sequence[float]]] = []   # the IMU's, the foot's
+        n = N_SERVOS
+        # raw: ref, traj, commanded, pos, vel, current (n each), joints (n), task_us, parts ...
+        self.true_src = 6 * n
+        self.task_src = 7 * n
+        # out, per servo: position (ref traj commanded pos true), velocity (measured true), current
+        per = len(POSITION_SERIES) + 3
+        src, dst = [], []
+        for i in range(n):
+            o = i * per
+            src += [i, n + i, 2 * n + i, 3 * n + i, 4 * n + i, 5 * n + i]
+            dst += [o, o + 1, o + 2, o + 3, o + 5, o + 7]
+        self.true_dst = [i * per + 4 for i in range(n)]
+        self.speed_dst = [i * per + 6 for i in range(n)]
+        self.task_dst = n * per
+        self.direct_src, self.direct_dst = src, dst
+        self.raw_width = 7 * n + 1
+        self.width = n * per + 2
+
+    def add(self, part: Callable[[Tick], Sequence[float]], width: int) -> None:
+        """Values read per row after the servos', recorded as read."""
+        self.parts.append(part)
+        self.direct_src = [*self.direct_src, *range(self.raw_width, self.raw_width + width)]
+        self.direct_dst = [*self.direct_dst, *range(self.width, self.width + width)]
+        self.raw_width += width
+        self.width += width
+
+    def read(self, t: Tick) -> Sequence[float]:
+        slave = self.slave
+        a0, a1, a2 = slave.actuators.servo          # the board's three servos, unrolled
+        s0, s1, s2 = slave.sensors.servo
+        row = [a0.ref, a1.ref, a2.ref, *slave.traj.position, *slave.commanded,
+               s0.pos, s1.pos, s2.pos, s0.vel, s1.vel, s2.vel, s0.current, s1.current, s2.current,
+               *self.joints(t.truth.joint_angles_deg), slave.task_us]
+        for part in self.parts:
+            row += part(t)
+        return row
+
+    def finish(self, t: np.ndarray, raw: np.ndarray, state: Any) -> tuple[np.ndarray, Any]:
+        n = len(t)
+        out = np.empty((n, self.width))
+        out[:, self.direct_dst] = raw[:, self.direct_src]
+        k = self.true_src
+        true = raw[:, k:k + N_SERVOS] * self.signs             # the servo frame
+        out[:, self.true_dst] = true
+        # the speed: (true - true before) * PWM period / dt, 0 at the first sample
+        t0, before = (t[0], true[0]) if state is None else state
+        dt = np.diff(t, prepend=t0)
+        per_tick = np.zeros(n)
+        np.divide(PWM_PERIOD_US, dt, out=per_tick, where=dt > 0)
+        speed = (true - np.vstack([before, true[:-1]])) * per_tick[:, None]
+        if state is None:
+            speed[0] = 0.0
+        out[:, self.speed_dst] = speed
+        out[:, self.task_dst] = raw[:, self.task_src] / 1000.0     # the last pass's time, ms
+        out[:, self.task_dst + 1] = PWM_PERIOD_US / 1000.0         # its budget
+        return out, (t[-1], true[-1].copy())
+
+
+def _board_columns(scu: int, slave: Any) -> list[Column]:
+    """The columns of board ``scu``."""
     base = scu_path(scu)
-
-    def servos(t: Tick) -> Sequence[float]:
-        act = slave.actuators.servo
-        traj = slave.traj.position
-        commanded = slave.commanded
-        sensed = slave.sensors.servo
-        true = t.true
-        vel = t.vel
-        out: list[float] = []
-        for i in range(N_SERVOS):
-            s = sensed[i]
-            k = first + i
-            out += (act[i].ref, traj[i], commanded[i], s.pos, true[k],   # position (POSITION_SERIES)
-                    s.vel, vel[k],                                       # velocity
-                    s.current)                                           # current
-        return out
-
-    servo = ColumnGroup(servos)
+    rows = _BoardRows(scu, slave)
+    group = ColumnGroup(rows.read, finish=rows.finish, raw_width=rows.raw_width)
     for i in range(N_SERVOS):
         sp = servo_path(scu, i)
-        servo.column(f"{sp}/position", POSITION_SERIES, "deg (servo frame)", POSITION_COLOURS)
-        servo.column(f"{sp}/velocity", ("measured", "true"), "deg per PWM period", (ORANGE, GREEN))
-        servo.column(f"{sp}/current", (f"{SERVO_JOINTS[scu][i]} ({i + 1})",), "ADC 0..100",
+        group.column(f"{sp}/position", POSITION_SERIES, "deg (servo frame)", POSITION_COLOURS)
+        group.column(f"{sp}/velocity", ("measured", "true"), "deg per PWM period", (ORANGE, GREEN))
+        group.column(f"{sp}/current", (f"{SERVO_JOINTS[scu][i]} ({i + 1})",), "ADC 0..100",
                      (CURRENT_COLOURS[i],))
 
     def flags(t: Tick) -> Sequence[float]:
@@ -234,12 +366,11 @@ def _board_columns(scu: int, slave: Any, first: int) -> list[Column]:
     counters.column(f"{base}/status", ("pwm", "calibrated"), "flag", (BLUE, PURPLE))
     counters.column(f"{base}/deadline_violations", ("deadline violations",), "count", (RED,))
     # the last pass's time at the board's clock (the PIC18 cycle table) against its 20 ms
-    budget_ms = PWM_PERIOD_US / 1000.0
-    task = Column(f"{base}/task_ms", ("task time", "budget"), "ms",
-                  lambda t: (slave.task_us / 1000.0, budget_ms), (BLUE, RED))
-    cols = [*servo.columns, *counters.columns, task]
+    # (one group with the servos: read in the same row, their columns follow in the buffer)
+    task = group.column(f"{base}/task_ms", ("task time", "budget"), "ms", (BLUE, RED))
+    cols = [*group.columns[:-1], *counters.columns, task]
     if scu == IMU_SCU:
-        cols += _imu_columns(base, slave)
+        cols += _imu_columns(base, slave, group, rows)
     foot = FOOT_OF_SCU.get(scu)
     if foot is None:
         return cols
@@ -256,28 +387,33 @@ def _board_columns(scu: int, slave: Any, first: int) -> list[Column]:
         tx, ty = (_NAN, _NAN) if c is None else c
         return [*slave.sensors.special, *truth.pad_forces_n[4 * f:4 * f + 4], fx, tx, fy, ty]
 
-    group = ColumnGroup(feet)
+    rows.add(feet, 12)
+    first = len(group.columns)
     group.column(f"{base}/force/adc", SENSOR_NAMES, "8-bit ADC", SENSOR_COLOURS)
     group.column(f"{base}/force/newton", SENSOR_NAMES, "N", SENSOR_COLOURS)
     for axis in ("x", "y"):
         group.column(f"{base}/cop/{axis}/firmware", ("firmware",), "mm", (ORANGE,), True)
         group.column(f"{base}/cop/{axis}/truth", ("truth",), "mm", (GREEN,), True)
-    return cols + group.columns
+    group.raw_width = rows.raw_width
+    return cols + group.columns[first:]
 
 
-def _imu_columns(base: str, slave: Any) -> list[Column]:
+def _imu_columns(base: str, slave: Any, group: ColumnGroup, rows: _BoardRows) -> list[Column]:
     """The body board's inclinometer and gyroscope (its sensor database, decoded) beside the
-    trunk's true attitude and rates (docs/firmware.md, "Trunk inertial sensors")."""
+    trunk's true attitude and rates (docs/firmware.md, "Trunk inertial sensors"): read with the
+    board's servos (``group``)."""
     def imu(t: Tick) -> Sequence[float]:
         m = imu_from_counts(slave.sensors.special)
         true = t.twin.plant.trunk_attitude_deg()
         return (m[0], true[0], m[1], true[1], m[2], true[2], m[3], true[3])
 
-    group = ColumnGroup(imu)
+    rows.add(imu, 8)
+    group.raw_width = rows.raw_width
+    first = len(group.columns)
     for what, unit in (("roll", "deg"), ("pitch", "deg"), ("roll_rate", "deg/s"), ("pitch_rate", "deg/s")):
         sensor = "gyroscope" if what.endswith("rate") else "inclinometer"
         group.column(f"{base}/imu/{what}", (sensor, "truth"), unit, (ORANGE, GREEN))
-    return group.columns
+    return group.columns[first:]
 
 
 def _robot_columns() -> list[Column]:
@@ -297,32 +433,44 @@ def _robot_columns() -> list[Column]:
 
 
 class _BusRates:
-    """CAN frames/s and bus load over the last tick (keeps the previous counters)."""
+    """CAN frames/s and bus load since the sample before, as a batch group: the counters are
+    read per row, the rates computed a chunk at a time. A row taken at the same instant as the
+    one before repeats its rates (and the next rates run from the first row of that instant)."""
+
+    raw_width = 2
 
     def __init__(self, twin: Any) -> None:
         self.net = twin.network
-        self.frames = self.net.frames_sent
-        self.busy = getattr(self.net, "busy_us", 0)
-        self.at: int | None = None
-        self.last: tuple[float, float] = (0.0, 0.0)
 
     def read(self, t: Tick) -> Sequence[float]:
-        if t.now_us == self.at:        # read again in the same tick (a column's own read)
-            return self.last
-        frames = self.net.frames_sent
-        busy = getattr(self.net, "busy_us", 0)
-        rate = (frames - self.frames) * t.per_s
-        load = 100.0 * (busy - self.busy) / t.dt_us if t.dt_us > 0 else 0.0
-        self.frames, self.busy = frames, busy
-        self.at, self.last = t.now_us, (rate, load)
-        return self.last
+        net = self.net
+        return (net.frames_sent, getattr(net, "busy_us", 0))
+
+    def finish(self, t: np.ndarray, raw: np.ndarray, state: Any) -> tuple[np.ndarray, Any]:
+        if state is None:       # the first row: no rates (0), the next ones run from it
+            state = (t[0], raw[0, 0], raw[0, 1], 0.0, 0.0)
+        at, frames, busy, rate0, load0 = state
+        new = t != np.concatenate(([at], t[:-1]))      # the first row of its instant
+        idx = np.flatnonzero(new)
+        dt = np.diff(t[idx], prepend=at)
+        rate = np.diff(raw[idx, 0], prepend=frames) * (US_PER_S / dt)
+        load = 100.0 * np.diff(raw[idx, 1], prepend=busy) / dt
+        last = np.full(len(t), -1)                          # each row's instant's first row in idx
+        last[idx] = np.arange(len(idx))
+        last = np.maximum.accumulate(last) + 1
+        out = np.column_stack([np.concatenate(([rate0], rate))[last], np.concatenate(([load0], load))[last]])
+        if len(idx):
+            k = idx[-1]
+            state = (t[k], raw[k, 0], raw[k, 1], rate[-1], load[-1])
+        return out, state
 
 
 def _bus_columns(twin: Any) -> list[Column]:
     net = twin.network
     ctl = twin.master.controller
     link = twin.link
-    rates = ColumnGroup(_BusRates(twin).read)
+    bus = _BusRates(twin)
+    rates = ColumnGroup(bus.read, finish=bus.finish, raw_width=bus.raw_width)
     counters = ColumnGroup(lambda t: (net.error_frames, net.frames_dropped, ctl.error_state_code, ctl.tec,
                                       ctl.rec, link.bytes_to_device, link.bytes_to_host), every=COUNTER_EVERY)
     return [
@@ -371,9 +519,8 @@ def _master_columns(twin: Any, groups: list[tuple[str, list[str]]]) -> list[Colu
 def twin_columns(twin: Any, scus: Sequence[int]) -> list[Column]:
     """The recording's column table for ``twin`` (boards ``scus``), in recording order."""
     cols: list[Column] = []
-    first = {key: k for k, key in enumerate(servo_keys(scus))}
     for scu in scus:
-        cols += _board_columns(scu, twin.slaves[scu], first[(scu, 0)])
+        cols += _board_columns(scu, twin.slaves[scu])
     cols += _robot_columns()
     cols += _bus_columns(twin)
     cols += _master_columns(twin, master_groups(twin))
@@ -404,15 +551,14 @@ def servo_keys(scus: Sequence[int]) -> list[tuple[int, int]]:
 def start_tick(twin: Any, prev: Tick | None, signs: Sequence[tuple[tuple[int, int], str, int]]) -> Tick:
     """The shared state of a sample taken now (``prev``: the previous sample's, for rates)."""
     t = Tick(twin)
-    t.truth = truth = twin.plant.truth()
+    t.truth = twin.plant.truth()
     t._signs = signs
-    joints = truth.joint_angles_deg
-    t.true = true = [sign * joints[joint] for _, joint, sign in signs]
     if prev is None:
-        t.vel = [0.0] * len(true)
         return t
+    before = prev.prev
+    if before is not None:
+        before.prev = None         # a tick keeps its predecessor while it is one of the last two
+    t.prev = prev
     t.dt_us = dt = t.now_us - prev.now_us
-    per_tick = PWM_PERIOD_US / dt if dt > 0 else 0.0
     t.per_s = US_PER_S / dt if dt > 0 else 0.0
-    t.vel = [(deg - before) * per_tick for deg, before in zip(true, prev.true, strict=True)]
     return t

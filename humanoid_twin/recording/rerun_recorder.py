@@ -36,6 +36,7 @@ import threading
 import time
 import uuid
 from collections.abc import Iterable, Sequence
+from itertools import chain
 from typing import Any
 
 import numpy as np
@@ -56,6 +57,7 @@ from humanoid_twin.recording.columns import (
     BLUE,
     RED,
     Column,
+    ColumnGroup,
     Tick,
     group_reader,
     master_groups,
@@ -239,9 +241,8 @@ class Recorder:
             if c.sparse and c.width != 1:
                 raise ValueError(f"column {c.path!r}: sparse columns have one series")
             seen.add(c.path)
-        # the buffer: one block of ``width`` buffer columns per Column, grouped by ``every`` (in
-        # table order within a group), so that the columns written on a row are one or a few
-        # contiguous runs, each packed in one call
+        # the recorded values: one block of ``width`` columns per Column, grouped by ``every`` (in
+        # table order within a group); ``_col``: each Column's first
         self._buffer_order = sorted(self.columns, key=lambda c: c.every)
         self._col: dict[str, int] = {}
         col = 0
@@ -249,10 +250,42 @@ class Recorder:
             self._col[c.path] = col
             col += c.width
         self._ncols = col
+        # the buffer, in the same order, by reader: a group read once a row for all its columns
+        # (recording/columns.py); a batch group's raw values there, its columns derived from
+        # them at chunk time (``_batch``); the other values as recorded (``_plain_*``: where)
+        # (read, batch group or None, every, buffer column, buffer width) per reader
+        self._readers: list[tuple[Any, ColumnGroup | None, int, int, int]] = []
+        self._batch: list[tuple[ColumnGroup, int, int]] = []     # (group, buffer column, values column)
+        src: list[int] = []
+        dst: list[int] = []
+        b = k = 0
+        order = self._buffer_order
+        while k < len(order):
+            read, m, group = group_reader(order, k)
+            batch = group if group is not None and group.finish is not None else None
+            f0 = self._col[order[k].path]
+            width = sum(c.width for c in order[k:k + m])
+            if batch is not None:
+                self._batch.append((batch, b, f0))
+                bw = batch.raw_width
+            else:
+                src += range(b, b + width)
+                dst += range(f0, f0 + width)
+                bw = width
+            self._readers.append((read, batch, order[k].every, b, bw))
+            b += bw
+            k += m
+        self._nbuf = b
+        self._plain_src = np.array(src, dtype=np.intp)
+        self._plain_dst = np.array(dst, dtype=np.intp)
+        self._batch_state: dict[ColumnGroup, Any] = {}
         # the readers of a row, by the set of Column.every values that divide its sample number
-        # (a column written every k-th sample is only read then): built once per set
-        self._row_readers: dict[frozenset[int], list[tuple[list, struct.Struct, int, int]]] = {}
+        # (a column written every k-th sample is only read then): built once per set, found by
+        # the sample number modulo the everys' least common multiple
+        self._row_readers: dict[int, list[tuple[list, struct.Struct, int, int]]] = {}
+        self._runs_by_due: dict[frozenset[int], list[tuple[list, struct.Struct, int, int]]] = {}
         self._everys = sorted({c.every for c in self.columns})
+        self._cycle = math.lcm(*self._everys)
         try:
             self._signs = servo_signs(twin, self.scus)
         except ValueError as exc:
@@ -264,31 +297,44 @@ class Recorder:
         self._platform = self._body_names.index("platform") if "platform" in self._body_names else None
         self._tick: Tick | None = None
 
+    def _runs_due(self, k: int) -> list[tuple[list, struct.Struct, int, int]]:
+        """The runs of sample number ``k`` (:meth:`_readers_for`), kept by ``k`` modulo the
+        cycle when it is short, by the set of ``every`` values due in any case."""
+        due = frozenset(e for e in self._everys if k % e == 0)
+        runs = self._runs_by_due.get(due)
+        if runs is None:
+            runs = self._runs_by_due[due] = self._readers_for(due)
+        if self._cycle <= _MAX_CHUNK_ROWS:
+            self._row_readers[k % self._cycle] = runs
+        return runs
+
     def _readers_for(self, due: frozenset[int]) -> list[tuple[list, struct.Struct, int, int]]:
         """The runs of buffer columns written on a row whose sample number the ``every`` values
-        ``due`` divide: for each, its readers (a :class:`ColumnGroup` read once for all its
-        columns), the packer of its values, its offset in the row (bytes) and its width."""
-        cols = [c for c in self._buffer_order if c.every in due]
-        runs = []
-        k = 0
-        while k < len(cols):
-            start = self._col[cols[k].path]
-            readers = []
-            width = 0
-            while k < len(cols) and self._col[cols[k].path] == start + width:
-                read, m = group_reader(cols, k)
-                readers.append(read)
-                width += sum(c.width for c in cols[k:k + m])
-                k += m
-            runs.append((readers, struct.Struct(f"={width}d"), start * _F64, width))
+        ``due`` divide: for each, its readers (``(read, batch group or None)``: a group read once
+        for all its columns), the packer of its values, its offset in the row (bytes) and its
+        width."""
+        runs: list[tuple[list, struct.Struct, int, int]] = []
+        start = end = -1
+        readers: list[tuple[Any, ColumnGroup | None]] = []
+        for read, batch, every, at, width in self._readers:
+            if every not in due:
+                continue
+            if at != end:           # not contiguous with the run before: a new run
+                if readers:
+                    runs.append((readers, struct.Struct(f"={end - start}d"), start * _F64, end - start))
+                readers, start = [], at
+            readers.append((read, batch))
+            end = at + width
+        if readers:
+            runs.append((readers, struct.Struct(f"={end - start}d"), start * _F64, end - start))
         return runs
 
     def _alloc(self) -> None:
         rows, nb = self._rows, len(self._body_names)
         self._t = np.zeros(rows, dtype=np.int64)
         self._k = np.zeros(rows, dtype=np.int64)       # the sample's number (for Column.every)
-        self._vals = np.zeros((rows, self._ncols), dtype=np.float64)
-        self._vals_bytes = memoryview(self._vals).cast("B")      # the rows, packed in place
+        self._buf = np.zeros((rows, self._nbuf), dtype=np.float64)
+        self._buf_bytes = memoryview(self._buf).cast("B")        # the rows, packed in place
         self._pos = np.zeros((rows, nb, 3), dtype=np.float64)
         self._quat = np.zeros((rows, nb, 4), dtype=np.float64)  # MuJoCo's order (w, x, y, z)
         self._com = np.zeros((rows, 3), dtype=np.float64)
@@ -320,19 +366,22 @@ class Recorder:
         self._k[i] = self.samples
         tick = self._tick = start_tick(twin, self._tick, self._signs)
         k = self.samples
-        due = frozenset(e for e in self._everys if k % e == 0)
-        runs = self._row_readers.get(due)
+        runs = self._row_readers.get(k % self._cycle)
         if runs is None:
-            runs = self._row_readers[due] = self._readers_for(due)
-        row = i * self._ncols * _F64
+            runs = self._runs_due(k)
+        raw = tick.raw
+        row = i * self._nbuf * _F64
         for readers, packer, offset, width in runs:
             vals: list[float] = []
             ext = vals.extend
-            for read in readers:
-                ext(read(tick))
+            for read, batch in readers:
+                v = read(tick)
+                if batch is not None:
+                    raw[batch] = v
+                ext(v)
             if len(vals) != width:
                 raise RecorderError(f"recorder bug: sampled {len(vals)} values for {width} columns")
-            packer.pack_into(self._vals_bytes, row + offset, *vals)
+            packer.pack_into(self._buf_bytes, row + offset, *vals)
 
         truth = tick.truth
         pos, quat = self._poses
@@ -392,7 +441,7 @@ class Recorder:
     def _send(self, n: int) -> None:
         rec = self.rec
         idx = [rr.TimeColumn(TIMELINE, duration=self._t[:n].astype("timedelta64[us]"))]
-        vals = self._vals[:n]
+        vals = self._values(n)
         # Scalars and transforms go as ready arrow arrays (``rr.ComponentColumn`` over the
         # archetype's own descriptor): the same data as ``rr.Scalars.columns(...)`` /
         # ``rr.Transform3D.columns(...)``, at a third of their Python cost per call.
@@ -432,6 +481,26 @@ class Recorder:
             ])
         self._send_feet(idx, vals)
         self._send_world(idx, n, quat)
+
+    def _values(self, n: int) -> np.ndarray:
+        """The recorded values of the ``n`` buffered rows, ``(n, columns)``: the buffer's, and the
+        batch groups' columns derived from their raw values (recording/columns.py), for the rows
+        each is written on."""
+        t = self._t[:n]
+        buf = self._buf[:n]
+        vals = np.empty((n, self._ncols))
+        vals[:, self._plain_dst] = buf[:, self._plain_src]
+        for group, b0, f0 in self._batch:
+            rows: slice | np.ndarray = slice(None)
+            if group.every != 1:          # only the rows the group is written on
+                rows = self._k[:n] % group.every == 0
+                if not rows.any():
+                    continue
+            raw = buf[rows, b0:b0 + group.raw_width]
+            out, state = group.finish(t[rows], raw, self._batch_state.get(group))
+            vals[rows, f0:f0 + group.width] = out
+            self._batch_state[group] = state
+        return vals
 
     def _send_feet(self, idx: list, vals: np.ndarray) -> None:
         rec = self.rec
@@ -473,14 +542,16 @@ class Recorder:
         # support polygon: one line strip per row with 2 points or more (closed with more than
         # 2), none for the others; all rows at once
         polys = self._poly[:n]
-        k = np.array([len(p) for p in polys], dtype=np.intp)     # each row's hull points
+        k = np.fromiter(map(len, polys), dtype=np.intp, count=n)    # each row's hull points
         has = k >= 2
         m = np.where(has, k + (k > 2), 0)                           # its strip's points
         strip_offsets = np.zeros(n + 1, dtype=np.int32)
         np.cumsum(has, out=strip_offsets[1:])
         total = int(m.sum())
         if total:
-            hulls = np.array([pt for poly in polys for pt in poly], dtype=float)   # every row's points
+            # every row's points, (x, y) each, read as one stream of floats
+            hulls = np.fromiter(chain.from_iterable(chain.from_iterable(polys)), dtype=float,
+                                count=2 * int(k.sum())).reshape(-1, 2)
             first = np.cumsum(k) - k                                # each row's first point in them
             row = np.repeat(np.arange(n), m)                        # the row of each strip point
             j = np.arange(total) - np.repeat(np.cumsum(m) - m, m)   # its place in its strip
