@@ -216,6 +216,16 @@ class CanController:
             self._on_rx(msg)
 
 
+class _Request:
+    """One TXREQ waiting for the wire (or on it): the arbitration ``key`` (the ID << 40, then the
+    request's order: ties never happen in the protocol), the instant ``req`` it joins arbitration,
+    the node ``ctrl``, its ``frame`` and the frame's length ``bits``. The wire's own record (typed
+    C fields in the compiled core: bus/network.pxd); :class:`CanNetwork` keeps the records of
+    finished requests for the next ones (``_spare``)."""
+
+    __slots__ = ("key", "req", "ctrl", "frame", "bits")
+
+
 class CanNetwork(ForeignPath):
     """The CAN wire: virtual-time frame timing, arbitration by ID, error counters.
 
@@ -263,11 +273,11 @@ class CanNetwork(ForeignPath):
         self._listeners: list[can.Listener] = []
         self._recovering: list[CanController] = []
         # wire state
-        # (ID << 40 | request seq, request time, controller, message, frame bits)
-        self._pending: list[tuple[int, int, CanController, Frame, int]] = []
+        self._pending: list[_Request] = []   # requested, not on the wire yet (in no order)
+        self._spare: list[_Request] = []     # records of finished requests, for the next ones
         self._busy = False          # a decision is scheduled or a frame/error frame is on the wire
         self._start = 0             # start (SOF) of the frame being decided / on the wire
-        self._current: tuple[int, int, CanController, Frame, int] | None = None
+        self._current: _Request | None = None
         self._current_aborted = False
         self._outcome = _OK
         self._idle_from = 0         # the wire is idle from this instant (end of last IFS)
@@ -455,8 +465,14 @@ class CanNetwork(ForeignPath):
         self._seq = seq = self._seq + 1
         clock = self.clock
         now = clock.now_us if at < 0 else at
-        # arbitration key: the ID, then request order (ties never happen in the protocol)
-        self._pending.append(((arb << 40) | seq, now, ctrl, frame, bits))
+        spare = self._spare
+        r = spare.pop() if spare else _Request.__new__(_Request)
+        r.key = (arb << 40) | seq       # arbitration: the ID, then request order
+        r.req = now
+        r.ctrl = ctrl
+        r.frame = frame
+        r.bits = bits
+        self._pending.append(r)
         ctrl._n_pending += 1
         if not self._busy:
             # _kick, inlined (one call less per frame): arbitrate at the next SOF
@@ -503,18 +519,17 @@ class CanNetwork(ForeignPath):
         self._start = start
         self.clock.schedule(start + 1, self._decide_cb)
 
-    def _pick(self, start: int) -> tuple[int, int, CanController, Frame, int] | None:
+    def _pick(self, start: int) -> _Request | None:
         """The arbitration winner among the frames requested up to ``start`` (lowest ID)."""
         best = None
         best_key = 0
         for e in self._pending:
-            req = e[1]
-            if req > start:
+            if e.req > start:
                 continue
-            c = e[2]
+            c = e.ctrl
             if c.silenced or c._suspend_until > start:
                 continue
-            key = e[0]
+            key = e.key
             if best is None or key < best_key:
                 best = e
                 best_key = key
@@ -528,10 +543,10 @@ class CanNetwork(ForeignPath):
             self._busy = False
             nxt = None
             for e in self._pending:
-                c = e[2]
+                c = e.ctrl
                 if c.silenced:
                     continue
-                t = e[1] if e[1] > c._suspend_until else c._suspend_until
+                t = e.req if e.req > c._suspend_until else c._suspend_until
                 if nxt is None or t < nxt:
                     nxt = t
             if nxt is not None:
@@ -542,15 +557,21 @@ class CanNetwork(ForeignPath):
             return
         self._begin(best, start)
 
-    def _begin(self, best: tuple[int, int, CanController, Frame, int], start: int) -> None:
+    def _begin(self, best: _Request, start: int) -> None:
         """``best`` won the arbitration at ``start``: it is on the wire until its end (or its
         error frame)."""
         if self._recovering:
             self._close_recovery_runs(start)
-        self._pending.remove(best)
+        pending = self._pending
+        last = pending.pop()        # the list is in no order: its last request takes the place
+        if last is not best:        # of the winner
+            i = 0
+            while pending[i] is not best:
+                i += 1
+            pending[i] = last
         self._current = best
         self._current_aborted = False
-        bits = best[4]
+        bits = best.bits
         outcome = _OK
         if self._faults_on:
             r = self._rng.random()
@@ -589,8 +610,12 @@ class CanNetwork(ForeignPath):
 
     def _complete(self) -> None:
         """End of EOF: the frame is valid; deliver it to the receivers and listeners."""
-        _key, _req, ctrl, frame, bits = self._current  # type: ignore[misc]
+        cur = self._current
+        assert cur is not None
+        ctrl = cur.ctrl
+        frame = cur.frame
         self._current = None
+        self._spare.append(cur)         # done with the request
         t = self.clock.now_us
         frame.timestamp = t / US_PER_S
         frame.channel = self.channel
@@ -630,11 +655,11 @@ class CanNetwork(ForeignPath):
             first = -1                  # none (virtual times are >= 0)
             if not self._recovering:
                 for e in pending:
-                    c = e[2]
+                    c = e.ctrl
                     if c.silenced:
                         first = -1
                         break
-                    r = e[1]
+                    r = e.req
                     if c._suspend_until > r:
                         r = c._suspend_until
                     if first < 0 or r < first:
@@ -657,7 +682,7 @@ class CanNetwork(ForeignPath):
         e = self._current
         assert e is not None
         self._current = None
-        ctrl = e[2]
+        ctrl = e.ctrl
         self.error_frames += 1
         ctrl.tx_errors += 1
         ctrl.tec += 8
@@ -679,6 +704,7 @@ class CanNetwork(ForeignPath):
             if not ctrl._off:
                 ctrl._n_pending -= 1
                 ctrl.tx_aborted += 1
+            self._spare.append(e)
         else:
             self._pending.append(e)     # automatic retransmission, same request order
             if ctrl.state == ERROR_PASSIVE:
@@ -692,14 +718,19 @@ class CanNetwork(ForeignPath):
         n = 0
         pending = self._pending
         if ctrl._n_pending:
-            keep = [e for e in pending if e[2] is not ctrl]
+            keep = []
+            for e in pending:
+                if e.ctrl is not ctrl:
+                    keep.append(e)
+                else:
+                    self._spare.append(e)
             n = len(pending) - len(keep)
             if n:
                 pending[:] = keep
                 ctrl._n_pending -= n
                 ctrl.tx_aborted += n
         cur = self._current
-        if cur is not None and cur[2] is ctrl:
+        if cur is not None and cur.ctrl is ctrl:
             self._current_aborted = True
         return n
 
