@@ -221,7 +221,7 @@ class _Request:
     request's order: ties never happen in the protocol), the instant ``req`` it joins arbitration,
     the node ``ctrl``, its ``frame`` and the frame's length ``bits``. The wire's own record (typed
     C fields in the compiled core: bus/network.pxd); :class:`CanNetwork` keeps the records of
-    finished requests for the next ones (``_spare``)."""
+    finished requests for the next ones (``_release``)."""
 
     __slots__ = ("key", "req", "ctrl", "frame", "bits")
 
@@ -273,8 +273,13 @@ class CanNetwork(ForeignPath):
         self._listeners: list[can.Listener] = []
         self._recovering: list[CanController] = []
         # wire state
-        self._pending: list[_Request] = []   # requested, not on the wire yet (in no order)
-        self._spare: list[_Request] = []     # records of finished requests, for the next ones
+        # the requests not on the wire yet, _pending[:_n_req] (in no order), and the records of
+        # finished requests, _spare[:_n_spare]: both lists only grow, their slots are reused (no
+        # list operation and no allocation a frame)
+        self._pending: list[_Request] = []
+        self._n_req = 0
+        self._spare: list[_Request] = []
+        self._n_spare = 0
         self._busy = False          # a decision is scheduled or a frame/error frame is on the wire
         self._start = 0             # start (SOF) of the frame being decided / on the wire
         self._current: _Request | None = None
@@ -410,7 +415,7 @@ class CanNetwork(ForeignPath):
         """Make a node stop (or resume) transmitting; it still receives. Its requests stay pending."""
         c = self.node(node_name)
         c.silenced = bool(silent)
-        if not silent and self._pending and not self._busy:
+        if not silent and self._n_req and not self._busy:
             self._kick()
 
     def force_bus_off(self, node_name: str) -> None:
@@ -465,14 +470,18 @@ class CanNetwork(ForeignPath):
         self._seq = seq = self._seq + 1
         clock = self.clock
         now = clock.now_us if at < 0 else at
-        spare = self._spare
-        r = spare.pop() if spare else _Request.__new__(_Request)
+        n = self._n_spare
+        if n:
+            self._n_spare = n - 1
+            r = self._spare[n - 1]
+        else:
+            r = _Request.__new__(_Request)
         r.key = (arb << 40) | seq       # arbitration: the ID, then request order
         r.req = now
         r.ctrl = ctrl
         r.frame = frame
         r.bits = bits
-        self._pending.append(r)
+        self._add(r)
         ctrl._n_pending += 1
         if not self._busy:
             # _kick, inlined (one call less per frame): arbitrate at the next SOF
@@ -511,6 +520,24 @@ class CanNetwork(ForeignPath):
         if not self._request(ctrl, msg):
             raise can.CanOperationError(f"humanoid_twin channel {self.channel}: TX queue full")
 
+    def _add(self, r: _Request) -> None:
+        """``r`` joins the pending requests."""
+        n = self._n_req
+        if n < len(self._pending):
+            self._pending[n] = r
+        else:
+            self._pending.append(r)
+        self._n_req = n + 1
+
+    def _release(self, r: _Request) -> None:
+        """``r`` is done with (sent, aborted or dropped): its record serves a later request."""
+        n = self._n_spare
+        if n < len(self._spare):
+            self._spare[n] = r
+        else:
+            self._spare.append(r)
+        self._n_spare = n + 1
+
     def _kick(self) -> None:
         """The wire is (or will be) idle and frames are pending: arbitrate at the next SOF."""
         now = self.clock.now_us
@@ -523,7 +550,9 @@ class CanNetwork(ForeignPath):
         """The arbitration winner among the frames requested up to ``start`` (lowest ID)."""
         best = None
         best_key = 0
-        for e in self._pending:
+        pending = self._pending
+        for k in range(self._n_req):
+            e = pending[k]
             if e.req > start:
                 continue
             c = e.ctrl
@@ -542,7 +571,9 @@ class CanNetwork(ForeignPath):
         if best is None:
             self._busy = False
             nxt = None
-            for e in self._pending:
+            pending = self._pending
+            for k in range(self._n_req):
+                e = pending[k]
                 c = e.ctrl
                 if c.silenced:
                     continue
@@ -563,12 +594,12 @@ class CanNetwork(ForeignPath):
         if self._recovering:
             self._close_recovery_runs(start)
         pending = self._pending
-        last = pending.pop()        # the list is in no order: its last request takes the place
-        if last is not best:        # of the winner
-            i = 0
-            while pending[i] is not best:
-                i += 1
-            pending[i] = last
+        i = 0
+        while pending[i] is not best:
+            i += 1
+        n = self._n_req - 1
+        pending[i] = pending[n]     # in no order: the last request takes the winner's place
+        self._n_req = n
         self._current = best
         self._current_aborted = False
         bits = best.bits
@@ -615,7 +646,7 @@ class CanNetwork(ForeignPath):
         ctrl = cur.ctrl
         frame = cur.frame
         self._current = None
-        self._spare.append(cur)         # done with the request
+        self._release(cur)              # done with the request (its fields are read)
         t = self.clock.now_us
         frame.timestamp = t / US_PER_S
         frame.channel = self.channel
@@ -640,8 +671,7 @@ class CanNetwork(ForeignPath):
             copy = frame.to_message()        # python-can's loggers get a can.Message of their own
             for lst in self._listeners:
                 lst.on_message_received(copy)
-        pending = self._pending
-        if pending:
+        if self._n_req:
             # _kick, inlined: the wire is idle from the end of the intermission
             idle = self._idle_from
             start = t if t > idle else idle
@@ -654,7 +684,9 @@ class CanNetwork(ForeignPath):
             # there (the same winner, the same instants; one clock event less per frame).
             first = -1                  # none (virtual times are >= 0)
             if not self._recovering:
-                for e in pending:
+                pending = self._pending
+                for k in range(self._n_req):
+                    e = pending[k]
                     c = e.ctrl
                     if c.silenced:
                         first = -1
@@ -704,29 +736,31 @@ class CanNetwork(ForeignPath):
             if not ctrl._off:
                 ctrl._n_pending -= 1
                 ctrl.tx_aborted += 1
-            self._spare.append(e)
+            self._release(e)
         else:
-            self._pending.append(e)     # automatic retransmission, same request order
+            self._add(e)                # automatic retransmission, same request order
             if ctrl.state == ERROR_PASSIVE:
                 ctrl._suspend_until = self._idle_from + self._dur(SUSPEND_BITS)
-        if self._pending:
+        if self._n_req:
             self._kick()
         else:
             self._busy = False
 
     def _abort(self, ctrl: CanController) -> int:
         n = 0
-        pending = self._pending
         if ctrl._n_pending:
-            keep = []
-            for e in pending:
-                if e.ctrl is not ctrl:
-                    keep.append(e)
+            pending = self._pending
+            kept = 0
+            for k in range(self._n_req):
+                e = pending[k]
+                if e.ctrl is ctrl:
+                    self._release(e)
                 else:
-                    self._spare.append(e)
-            n = len(pending) - len(keep)
+                    pending[kept] = e
+                    kept += 1
+            n = self._n_req - kept
+            self._n_req = kept
             if n:
-                pending[:] = keep
                 ctrl._n_pending -= n
                 ctrl.tx_aborted += n
         cur = self._current
