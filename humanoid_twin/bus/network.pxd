@@ -132,7 +132,7 @@ cdef class CanNetwork(ForeignPath):
     @cython.locals(cur=_Request, ctrl=CanController, frame=Frame, t=cython.longlong, pending=list,
                    idle=cython.longlong, start=cython.longlong, clock=Clock, first=cython.longlong,
                    e=_Request, c=CanController, r=cython.longlong, sof=cython.longlong,
-                   best=_Request, k=Py_ssize_t)
+                   best=_Request, k=Py_ssize_t, n=Py_ssize_t)
     cpdef _complete(self)
     @cython.locals(e=_Request, ctrl=CanController, c=CanController)
     cpdef _error(self)

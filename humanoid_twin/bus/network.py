@@ -481,7 +481,12 @@ class CanNetwork(ForeignPath):
         r.ctrl = ctrl
         r.frame = frame
         r.bits = bits
-        self._add(r)
+        n = self._n_req                 # _add, inlined (one call less a frame)
+        if n < len(self._pending):
+            self._pending[n] = r
+        else:
+            self._pending.append(r)
+        self._n_req = n + 1
         ctrl._n_pending += 1
         if not self._busy:
             # _kick, inlined (one call less per frame): arbitrate at the next SOF
@@ -646,7 +651,12 @@ class CanNetwork(ForeignPath):
         ctrl = cur.ctrl
         frame = cur.frame
         self._current = None
-        self._release(cur)              # done with the request (its fields are read)
+        n = self._n_spare               # done with the request: _release, inlined
+        if n < len(self._spare):
+            self._spare[n] = cur
+        else:
+            self._spare.append(cur)
+        self._n_spare = n + 1
         t = self.clock.now_us
         frame.timestamp = t / US_PER_S
         frame.channel = self.channel
