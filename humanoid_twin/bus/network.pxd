@@ -67,6 +67,16 @@ cdef class CanController:
     cpdef Frame load_tx(self, object msg, int arbitration_id, object payload)
 
 
+# a TX request: typed C fields (no tuple, no Python ints per frame); only this module uses them
+@cython.final
+cdef class _Request:
+    cdef long long key
+    cdef long long req
+    cdef CanController ctrl
+    cdef Frame frame
+    cdef long long bits
+
+
 cdef class CanNetwork(ForeignPath):
     cdef public long long _bit_us
     cdef public bint _twin
@@ -75,9 +85,12 @@ cdef class CanNetwork(ForeignPath):
     cdef public dict _external
     cdef public list _listeners
     cdef public list _pending
+    cdef public Py_ssize_t _n_req
+    cdef public list _spare
+    cdef public Py_ssize_t _n_spare
     cdef public bint _busy
     cdef public long long _start
-    cdef public tuple _current
+    cdef public _Request _current
     cdef public bint _current_aborted
     cdef public int _outcome
     cdef public long long _idle_from
@@ -99,22 +112,30 @@ cdef class CanNetwork(ForeignPath):
     cpdef long long _dur(self, long long bits) except? -1
     @cython.locals(arb=cython.longlong, bits=cython.longlong, seq=cython.longlong,
                    now=cython.longlong, idle=cython.longlong, start=cython.longlong, clock=Clock,
-                   frame=Frame)
+                   frame=Frame, n=Py_ssize_t, r=_Request)
     cpdef bint _request(self, CanController ctrl, object msg, long long at=*) except -1
+    @cython.locals(n=Py_ssize_t)
+    cdef int _add(self, _Request r) except -1
+    @cython.locals(n=Py_ssize_t)
+    cdef int _release(self, _Request r) except -1
     cpdef _kick(self)
-    @cython.locals(e=tuple, c=CanController, req=cython.longlong, key=cython.longlong,
-                   best_key=cython.longlong)
-    cpdef object _pick(self, long long start)
-    @cython.locals(start=cython.longlong, e=tuple, c=CanController)
+    @cython.locals(e=_Request, c=CanController, key=cython.longlong, best_key=cython.longlong,
+                   best=_Request, pending=list, k=Py_ssize_t)
+    cpdef _Request _pick(self, long long start)
+    @cython.locals(start=cython.longlong, e=_Request, c=CanController, best=_Request,
+                   pending=list, k=Py_ssize_t)
     cpdef _decide(self)
     @cython.locals(bits=cython.longlong, outcome=cython.int, end=cython.longlong,
-                   bu=cython.longlong, t_eof=cython.longlong, clock=Clock)
-    cpdef _begin(self, tuple best, long long start)
-    @cython.locals(ctrl=CanController, frame=Frame, t=cython.longlong, pending=list, idle=cython.longlong,
-                   start=cython.longlong, clock=Clock, first=cython.longlong, e=tuple,
-                   c=CanController, r=cython.longlong, sof=cython.longlong)
+                   bu=cython.longlong, t_eof=cython.longlong, clock=Clock, pending=list,
+                   i=Py_ssize_t, n=Py_ssize_t)
+    cpdef _begin(self, _Request best, long long start)
+    @cython.locals(cur=_Request, ctrl=CanController, frame=Frame, t=cython.longlong, pending=list,
+                   idle=cython.longlong, start=cython.longlong, clock=Clock, first=cython.longlong,
+                   e=_Request, c=CanController, r=cython.longlong, sof=cython.longlong,
+                   best=_Request, k=Py_ssize_t, n=Py_ssize_t)
     cpdef _complete(self)
-    @cython.locals(e=tuple, ctrl=CanController, c=CanController)
+    @cython.locals(e=_Request, ctrl=CanController, c=CanController)
     cpdef _error(self)
-    @cython.locals(n=cython.longlong, pending=list, keep=list, cur=tuple)
+    @cython.locals(n=cython.longlong, pending=list, kept=Py_ssize_t, k=Py_ssize_t, cur=_Request,
+                   e=_Request)
     cpdef long long _abort(self, CanController ctrl) except -1

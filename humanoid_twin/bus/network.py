@@ -216,6 +216,16 @@ class CanController:
             self._on_rx(msg)
 
 
+class _Request:
+    """One TXREQ waiting for the wire (or on it): the arbitration ``key`` (the ID << 40, then the
+    request's order: ties never happen in the protocol), the instant ``req`` it joins arbitration,
+    the node ``ctrl``, its ``frame`` and the frame's length ``bits``. The wire's own record (typed
+    C fields in the compiled core: bus/network.pxd); :class:`CanNetwork` keeps the records of
+    finished requests for the next ones (``_release``)."""
+
+    __slots__ = ("key", "req", "ctrl", "frame", "bits")
+
+
 class CanNetwork(ForeignPath):
     """The CAN wire: virtual-time frame timing, arbitration by ID, error counters.
 
@@ -263,11 +273,16 @@ class CanNetwork(ForeignPath):
         self._listeners: list[can.Listener] = []
         self._recovering: list[CanController] = []
         # wire state
-        # (ID << 40 | request seq, request time, controller, message, frame bits)
-        self._pending: list[tuple[int, int, CanController, Frame, int]] = []
+        # the requests not on the wire yet, _pending[:_n_req] (in no order), and the records of
+        # finished requests, _spare[:_n_spare]: both lists only grow, their slots are reused (no
+        # list operation and no allocation a frame)
+        self._pending: list[_Request] = []
+        self._n_req = 0
+        self._spare: list[_Request] = []
+        self._n_spare = 0
         self._busy = False          # a decision is scheduled or a frame/error frame is on the wire
         self._start = 0             # start (SOF) of the frame being decided / on the wire
-        self._current: tuple[int, int, CanController, Frame, int] | None = None
+        self._current: _Request | None = None
         self._current_aborted = False
         self._outcome = _OK
         self._idle_from = 0         # the wire is idle from this instant (end of last IFS)
@@ -400,7 +415,7 @@ class CanNetwork(ForeignPath):
         """Make a node stop (or resume) transmitting; it still receives. Its requests stay pending."""
         c = self.node(node_name)
         c.silenced = bool(silent)
-        if not silent and self._pending and not self._busy:
+        if not silent and self._n_req and not self._busy:
             self._kick()
 
     def force_bus_off(self, node_name: str) -> None:
@@ -455,8 +470,23 @@ class CanNetwork(ForeignPath):
         self._seq = seq = self._seq + 1
         clock = self.clock
         now = clock.now_us if at < 0 else at
-        # arbitration key: the ID, then request order (ties never happen in the protocol)
-        self._pending.append(((arb << 40) | seq, now, ctrl, frame, bits))
+        n = self._n_spare
+        if n:
+            self._n_spare = n - 1
+            r = self._spare[n - 1]
+        else:
+            r = _Request.__new__(_Request)
+        r.key = (arb << 40) | seq       # arbitration: the ID, then request order
+        r.req = now
+        r.ctrl = ctrl
+        r.frame = frame
+        r.bits = bits
+        n = self._n_req                 # _add, inlined (one call less a frame)
+        if n < len(self._pending):
+            self._pending[n] = r
+        else:
+            self._pending.append(r)
+        self._n_req = n + 1
         ctrl._n_pending += 1
         if not self._busy:
             # _kick, inlined (one call less per frame): arbitrate at the next SOF
@@ -495,6 +525,24 @@ class CanNetwork(ForeignPath):
         if not self._request(ctrl, msg):
             raise can.CanOperationError(f"humanoid_twin channel {self.channel}: TX queue full")
 
+    def _add(self, r: _Request) -> None:
+        """``r`` joins the pending requests."""
+        n = self._n_req
+        if n < len(self._pending):
+            self._pending[n] = r
+        else:
+            self._pending.append(r)
+        self._n_req = n + 1
+
+    def _release(self, r: _Request) -> None:
+        """``r`` is done with (sent, aborted or dropped): its record serves a later request."""
+        n = self._n_spare
+        if n < len(self._spare):
+            self._spare[n] = r
+        else:
+            self._spare.append(r)
+        self._n_spare = n + 1
+
     def _kick(self) -> None:
         """The wire is (or will be) idle and frames are pending: arbitrate at the next SOF."""
         now = self.clock.now_us
@@ -503,18 +551,19 @@ class CanNetwork(ForeignPath):
         self._start = start
         self.clock.schedule(start + 1, self._decide_cb)
 
-    def _pick(self, start: int) -> tuple[int, int, CanController, Frame, int] | None:
+    def _pick(self, start: int) -> _Request | None:
         """The arbitration winner among the frames requested up to ``start`` (lowest ID)."""
         best = None
         best_key = 0
-        for e in self._pending:
-            req = e[1]
-            if req > start:
+        pending = self._pending
+        for k in range(self._n_req):
+            e = pending[k]
+            if e.req > start:
                 continue
-            c = e[2]
+            c = e.ctrl
             if c.silenced or c._suspend_until > start:
                 continue
-            key = e[0]
+            key = e.key
             if best is None or key < best_key:
                 best = e
                 best_key = key
@@ -527,11 +576,13 @@ class CanNetwork(ForeignPath):
         if best is None:
             self._busy = False
             nxt = None
-            for e in self._pending:
-                c = e[2]
+            pending = self._pending
+            for k in range(self._n_req):
+                e = pending[k]
+                c = e.ctrl
                 if c.silenced:
                     continue
-                t = e[1] if e[1] > c._suspend_until else c._suspend_until
+                t = e.req if e.req > c._suspend_until else c._suspend_until
                 if nxt is None or t < nxt:
                     nxt = t
             if nxt is not None:
@@ -542,15 +593,21 @@ class CanNetwork(ForeignPath):
             return
         self._begin(best, start)
 
-    def _begin(self, best: tuple[int, int, CanController, Frame, int], start: int) -> None:
+    def _begin(self, best: _Request, start: int) -> None:
         """``best`` won the arbitration at ``start``: it is on the wire until its end (or its
         error frame)."""
         if self._recovering:
             self._close_recovery_runs(start)
-        self._pending.remove(best)
+        pending = self._pending
+        i = 0
+        while pending[i] is not best:
+            i += 1
+        n = self._n_req - 1
+        pending[i] = pending[n]     # in no order: the last request takes the winner's place
+        self._n_req = n
         self._current = best
         self._current_aborted = False
-        bits = best[4]
+        bits = best.bits
         outcome = _OK
         if self._faults_on:
             r = self._rng.random()
@@ -589,8 +646,17 @@ class CanNetwork(ForeignPath):
 
     def _complete(self) -> None:
         """End of EOF: the frame is valid; deliver it to the receivers and listeners."""
-        _key, _req, ctrl, frame, bits = self._current  # type: ignore[misc]
+        cur = self._current
+        assert cur is not None
+        ctrl = cur.ctrl
+        frame = cur.frame
         self._current = None
+        n = self._n_spare               # done with the request: _release, inlined
+        if n < len(self._spare):
+            self._spare[n] = cur
+        else:
+            self._spare.append(cur)
+        self._n_spare = n + 1
         t = self.clock.now_us
         frame.timestamp = t / US_PER_S
         frame.channel = self.channel
@@ -615,8 +681,7 @@ class CanNetwork(ForeignPath):
             copy = frame.to_message()        # python-can's loggers get a can.Message of their own
             for lst in self._listeners:
                 lst.on_message_received(copy)
-        pending = self._pending
-        if pending:
+        if self._n_req:
             # _kick, inlined: the wire is idle from the end of the intermission
             idle = self._idle_from
             start = t if t > idle else idle
@@ -629,12 +694,14 @@ class CanNetwork(ForeignPath):
             # there (the same winner, the same instants; one clock event less per frame).
             first = -1                  # none (virtual times are >= 0)
             if not self._recovering:
-                for e in pending:
-                    c = e[2]
+                pending = self._pending
+                for k in range(self._n_req):
+                    e = pending[k]
+                    c = e.ctrl
                     if c.silenced:
                         first = -1
                         break
-                    r = e[1]
+                    r = e.req
                     if c._suspend_until > r:
                         r = c._suspend_until
                     if first < 0 or r < first:
@@ -657,7 +724,7 @@ class CanNetwork(ForeignPath):
         e = self._current
         assert e is not None
         self._current = None
-        ctrl = e[2]
+        ctrl = e.ctrl
         self.error_frames += 1
         ctrl.tx_errors += 1
         ctrl.tec += 8
@@ -679,27 +746,35 @@ class CanNetwork(ForeignPath):
             if not ctrl._off:
                 ctrl._n_pending -= 1
                 ctrl.tx_aborted += 1
+            self._release(e)
         else:
-            self._pending.append(e)     # automatic retransmission, same request order
+            self._add(e)                # automatic retransmission, same request order
             if ctrl.state == ERROR_PASSIVE:
                 ctrl._suspend_until = self._idle_from + self._dur(SUSPEND_BITS)
-        if self._pending:
+        if self._n_req:
             self._kick()
         else:
             self._busy = False
 
     def _abort(self, ctrl: CanController) -> int:
         n = 0
-        pending = self._pending
         if ctrl._n_pending:
-            keep = [e for e in pending if e[2] is not ctrl]
-            n = len(pending) - len(keep)
+            pending = self._pending
+            kept = 0
+            for k in range(self._n_req):
+                e = pending[k]
+                if e.ctrl is ctrl:
+                    self._release(e)
+                else:
+                    pending[kept] = e
+                    kept += 1
+            n = self._n_req - kept
+            self._n_req = kept
             if n:
-                pending[:] = keep
                 ctrl._n_pending -= n
                 ctrl.tx_aborted += n
         cur = self._current
-        if cur is not None and cur[2] is ctrl:
+        if cur is not None and cur.ctrl is ctrl:
             self._current_aborted = True
         return n
 

@@ -4,10 +4,13 @@
 cimport cython
 from humanoid_twin.bus.frames cimport Frame
 
+cdef long long STD_ID_MAX
+
 cdef class RxPort:
     cdef public object bus
-    cdef public dict routes
+    cdef public list routes
     cdef public long long rx_skipped
 
-    @cython.locals(route=object, cbs=tuple, skips=tuple, p=RxPort, frame=Frame)
+    @cython.locals(route=object, cbs=tuple, skips=tuple, p=RxPort, frame=Frame, arb=cython.longlong,
+                   extended=bint)
     cpdef deliver(self, object msg)

@@ -38,6 +38,7 @@ import can
 from can.bus import BusABC
 
 from humanoid_twin.bus.frames import Filters, Frame, as_message, filters_accept, parse_filters
+from humanoid_twin.protocol.canframes import STD_ID_MAX
 
 DEFAULT_CHANNEL = "humanoid_twin"
 
@@ -133,9 +134,10 @@ class RxPort:
     """A bus's side of the per-frame path: what the wire calls at the end of each frame the bus
     sent, and what the other members' deliveries count for it.
 
-    ``routes``: standard ID -> (the receive interrupts of the members that take the bus's frame
-    with that ID, the ports of the members that only count it, outside their ``rx_ids``), kept
-    when every target has an interrupt (the common case: no per-member work per frame).
+    ``routes``: a table indexed by the standard ID (0..0x7FF; None where no route is kept yet) of
+    (the receive interrupts of the members that take the bus's frame with that ID, the ports of
+    the members that only count it, outside their ``rx_ids``), kept when every target has an
+    interrupt (the common case: no per-member work, no dict lookup per frame).
     ``rx_skipped``: frames this bus's filters took outside its ``rx_ids`` (:attr:`TwinBus.rx_skipped`).
     """
 
@@ -143,16 +145,19 @@ class RxPort:
 
     def __init__(self, bus: TwinBus) -> None:
         self.bus = bus
-        self.routes: dict[int, tuple[tuple[RxCallback, ...], tuple[RxPort, ...]]] = {}
+        self.routes: list[tuple[tuple[RxCallback, ...], tuple[RxPort, ...]] | None] = _no_routes()
         self.rx_skipped = 0
 
     def deliver(self, msg: Frame | can.Message) -> None:
         """:meth:`TwinBus.deliver`: hand ``msg`` (already on the wire) to every accepting member."""
         if type(msg) is Frame:
             frame = msg
-            route = self.routes.get(frame.arbitration_id)
+            arb = frame.arbitration_id
+            extended = False
         else:
-            route = None if msg.is_extended_id else self.routes.get(msg.arbitration_id)
+            arb = msg.arbitration_id
+            extended = msg.is_extended_id
+        route = self.routes[arb] if not extended and 0 <= arb <= STD_ID_MAX else None
         if route is None:
             self.bus._deliver_slow(msg)
             return
@@ -161,6 +166,11 @@ class RxPort:
             cb(msg)
         for p in skips:
             p.rx_skipped += 1
+
+
+def _no_routes() -> list:
+    """An empty route table: one entry per standard ID."""
+    return [None] * (STD_ID_MAX + 1)
 
 
 def active_channels() -> list[str]:
@@ -245,7 +255,7 @@ class TwinBus(BusABC):
 
     def forget_routes(self) -> None:
         """Drop the cached delivery routes (the medium's members, filters or mutes changed)."""
-        self.port.routes.clear()
+        self.port.routes = _no_routes()
 
     @property
     def rx_skipped(self) -> int:
@@ -322,7 +332,7 @@ class TwinBus(BusABC):
         arb = msg.arbitration_id
         route = self._medium.route(arb, extended)
         targets = [b for b in route if b is not self or self.receive_own_messages]
-        if not extended and all(b.rx_callback is not None for b in targets):
+        if not extended and 0 <= arb <= STD_ID_MAX and all(b.rx_callback is not None for b in targets):
             skips = tuple(b.port for b in targets if b.skips(arb))
             self.port.routes[arb] = (
                 tuple(b.delivery_callback() for b in targets if b.port not in skips), skips)

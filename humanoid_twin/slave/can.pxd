@@ -46,6 +46,8 @@ cdef class SlaveCan:
     cdef public bint calib_request
     cdef public tuple _sensor_ids
     cdef public dict _rx_index
+    cdef public long _rx_id1
+    cdef public long _rx_id2
     cdef public list _tx_msgs
     cdef public object _isr_send_cb
     cdef public long _tx_index
@@ -64,7 +66,7 @@ cdef class SlaveCan:
     cdef public long long isr_cycles
     cdef long long _skipped_seen
 
-    @cython.locals(now=cython.longlong, due=cython.longlong)
+    @cython.locals(now=cython.longlong, due=cython.longlong, arb=cython.long, index=cython.long)
     cpdef lowISR(self, Frame msg)
     @cython.locals(c=CanController, skipped=cython.longlong, cycles=cython.longlong)
     cpdef long long take_isr_cycles(self) except? -1

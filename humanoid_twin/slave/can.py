@@ -70,6 +70,8 @@ class SlaveCan:
         "calib_request",
         "_sensor_ids",
         "_rx_index",
+        "_rx_id1",
+        "_rx_id2",
         "_tx_msgs",
         "_isr_send_cb",
         "_tx_index",
@@ -97,9 +99,10 @@ class SlaveCan:
         self.controller: Any = None
         self.node_name = node_name(address)
         self._sensor_ids = SENSOR_IDS[address]
-        # the two actuation identifiers addressed to this board -> packet index: the destination
-        # and operation check of lowISR in one dict lookup
+        # the two actuation identifiers addressed to this board -> packet index (the network's
+        # rx_ids), and the same two as lowISR's destination and operation check
         self._rx_index = {ACTUATION_IDS[address][i]: i for i in (0, 1)}
+        self._rx_id1, self._rx_id2 = ACTUATION_IDS[address]
         # the sensor packets' messages (TXB0/TXB1), built once and reloaded for each answer
         self._tx_msgs: list[Frame | None] = [None, None]
         self._isr_send_cb = self._isr_send
@@ -144,8 +147,12 @@ class SlaveCan:
     # -- interrupt ------------------------------------------------------------------------------
     def lowISR(self, msg: Frame) -> None:
         """``lowISR`` (table 17, fig. 9, slide 29): the CAN receive interrupt (RXBnIF)."""
-        index = self._rx_index.get(msg.arbitration_id)
-        if index is None:                          # not for this board, or not an actuation
+        arb = msg.arbitration_id
+        if arb == self._rx_id1:
+            index = 0
+        elif arb == self._rx_id2:
+            index = 1
+        else:                                      # not for this board, or not an actuation
             self._rx_ignored += 1
             self.isr_cycles += _C_ISR_OTHER
             return

@@ -31,6 +31,7 @@ cdef long long _C_SPECIAL
 cdef long long _C_COP
 cdef long long _C_CALIB
 cdef long long _C_CONTROL
+cdef long _CALIB_DONE
 
 
 cdef class Slave:
@@ -82,7 +83,7 @@ cdef class Slave:
                    late=bint, last=cython.longlong, can_=SlaveCan, pic=Pic2, act=Actuators,
                    st=SensorStatus, calib=Calibration, traj=Trajectory, servo=ServoControl,
                    types=list, refs=list, periods=list, start=list, i=cython.long,
-                   a=ActuatorServo, restarted=cython.long, sv=list, still=list, fin=list,
+                   a=ActuatorServo, c=Control, tr=StructTrajectory, restarted=cython.long, sv=list, still=list, fin=list,
                    done=bint, n_fin=cython.long, s=StructServo, p=cython.long, v=cython.long,
                    f=bint, target=cython.long, d=cython.long, sp=list, k=cython.long,
                    dt=cython.longlong, cycles=cython.longlong, us=cython.longlong,

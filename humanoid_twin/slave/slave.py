@@ -65,6 +65,8 @@ _C_COP = SLAVE["calc_cop"]
 _C_CALIB = SLAVE["calibration"]
 _C_CONTROL = N_SERVOS * SLAVE["trajectory_servo"] + SLAVE["controller"] + SLAVE["actuation"]
 
+_CALIB_DONE = Calibration.DONE      # the loop's test of the calibration (a C constant compiled)
+
 
 class Slave:
     """One Slave board (PIC18F258): ``Slave(address, clock, plant, network, *, phase_us)``.
@@ -229,16 +231,16 @@ class Slave:
         calib = self.calib
         if self.can.calib_request:
             self.can.calib_request = False
-            if calib.state == Calibration.DONE:
+            if calib.state == _CALIB_DONE:
                 calib.reset()
-        if calib.state != Calibration.DONE:
+        if calib.state != _CALIB_DONE:
             self._calibration_step()
             cycles += _C_CALIB
 
         traj = self.traj
         servo = self.servo
         types = self._types
-        if calib.state == Calibration.DONE:
+        if calib.state == _CALIB_DONE:
             pic.statusPWM(act.sysStatus.pwm)
             refs = self._refs
             periods = self._periods
@@ -246,7 +248,8 @@ class Slave:
                 a = act.servo[i]
                 refs[i] = a.ref
                 periods[i] = a.speed
-                types[i] = act.control[i].type
+                c = act.control[i]
+                types[i] = c.type
             # a new trajectory starts from the position commanded now: the balance laws'
             # output (reference + offset), or, under the PID, its reference (the PID's own
             # command carries its integral correction, which it keeps)
@@ -267,7 +270,7 @@ class Slave:
         sv = self.sensors.servo
         still = self._still
         fin = st.motionFin
-        done = calib.state == Calibration.DONE
+        done = calib.state == _CALIB_DONE
         n_fin = 0
         for i in range(N_SERVOS):
             s = sv[i]
@@ -279,7 +282,11 @@ class Slave:
             still[i] = still[i] + 1 if v == 0 else 0
             f = False
             if done and traj.done(i):
-                target = traj.traject[i].theta_final if types[i] == LOCOMOTION_CONTROL else servo.output[i]
+                if types[i] == LOCOMOTION_CONTROL:
+                    tr = traj.traject[i]
+                    target = tr.theta_final
+                else:
+                    target = servo.output[i]
                 d = p - target
                 f = -MOTION_FIN_TOL_DEG <= d <= MOTION_FIN_TOL_DEG or still[i] >= MOTION_FIN_STILL_TICKS
             fin[i] = f
