@@ -78,12 +78,17 @@ _LOAD_RADIUS_MM_PER_N = 1.5
 _LOAD_RADIUS_MAX_MM = 30.0
 # Largest buffer (rows per chunk): 10 000 rows x ~270 columns x 8 bytes = ~22 MB.
 _MAX_CHUNK_ROWS = 10_000
+# Simulated seconds per chunk: each entity's rows go to rerun in one send_columns call per chunk
+# (a fixed cost per entity and call: one chunk of 30 s sends a 30 s run in ~35 ms, three of 10 s
+# in ~50 ms; the buffers hold one chunk, 5.5 MB at 30 s: docs/recording.md).
+DEFAULT_CHUNK_S = 30.0
 # Height (m) of the CoP point and support polygon above the platform surface, so they show.
 _ON_FLOOR_M = 0.001
 # Recordings up to this many simulated seconds keep rerun's footer index in memory to the end and
 # get their footer written by rerun at close (the index grows ~0.04 MB per simulated second with
-# the default 10 s chunks: a few MB at most); longer (or open-ended) ones stream without it, for
-# flat memory, and are compacted at close (about 1 s per simulated minute). compact_for() decides.
+# 10 s chunks, less with the default 30 s ones: a few MB at most); longer (or open-ended) ones
+# stream without it, for flat memory, and are compacted at close (about 1 s per simulated minute).
+# compact_for() decides.
 SHORT_RECORDING_S = 120.0
 # rerun's TextLog levels accepted by log_event
 LEVELS = ("TRACE", "DEBUG", "INFO", "WARN", "ERROR", "CRITICAL")
@@ -143,7 +148,7 @@ class Recorder:
         period_us: int = PWM_PERIOD_US,
         app_id: str = "humanoid_twin",
         *,
-        chunk_s: float = 10.0,
+        chunk_s: float = DEFAULT_CHUNK_S,
         scus: Iterable[int] = SCUS,
         blueprint: bool = True,
         columns: Sequence[Column] = (),
