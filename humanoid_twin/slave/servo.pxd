@@ -23,10 +23,6 @@ cdef long long _V_MAX16
 cdef tuple _SERVO_SETS
 
 cpdef tuple balance_gain(object control)
-@cython.locals(n=Py_ssize_t, i=Py_ssize_t, x=cython.long, y=cython.long)
-cdef bint _same(tuple last, object values) except -1
-@cython.locals(ki=cython.long, kp=cython.long, kd=cython.long)
-cdef bint _same_gains(tuple last, Control control) except -1
 @cython.locals(out=list, j=cython.long)
 cdef object _plain_output(object values, object servos, object lo, object hi)
 cpdef long long calibration_b(long pos_master, long long adc_sum, long n=*) except? -1
@@ -70,7 +66,6 @@ cdef class ServoControl:
     cdef public set _stopped
     cdef public list law_cost
     cdef public long long law_cycles_tick
-    cdef list _given
 
     cpdef object law(self, long ctype)
     @cython.locals(i=cython.long, p=cython.long)
@@ -87,7 +82,7 @@ cdef class ServoControl:
     cpdef object _run(self, object law, long t, LawInputs inp)
     cpdef _stop(self, object law, long t, object reason)
     @cython.locals(inp=LawInputs, c0=Control, c1=Control, c2=Control, f0=cython.longlong,
-                   f1=cython.longlong, given=list, g=tuple)
+                   f1=cython.longlong)
     cpdef LawInputs _fill_inputs(self, object measured, bint loaded=*, object forces=*)
     @cython.locals(x8=cython.longlong, y8=cython.longlong, f0=cython.longlong, f1=cython.longlong)
     cpdef filterCoP(self, long cop_x, long cop_y, bint loaded)

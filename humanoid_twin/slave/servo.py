@@ -121,25 +121,6 @@ def force_offset(sum7: int, n: int = CALIB_SAMPLES) -> int:
     return FORCE_CALIBRATION_VALUE - divround(sum7, n)
 
 
-def _same(last: tuple[int, ...], values: Sequence[int]) -> bool:
-    """Whether the tuple ``last`` holds the ints ``values`` (then the laws get ``last`` again)."""
-    n = len(last)
-    if len(values) != n:
-        return False
-    for i in range(n):
-        x = last[i]
-        y = values[i]
-        if x != y:
-            return False
-    return True
-
-
-def _same_gains(last: tuple[int, int, int], control: Control) -> bool:
-    """Whether ``last`` holds the gain bytes ``(KI, KP, KD)`` of ``control``."""
-    ki, kp, kd = last
-    return ki == control.ki and kp == control.kp and kd == control.kd
-
-
 def _plain_output(values: Any, servos: Sequence[int], lo: int, hi: int) -> tuple[int, ...] | None:
     """What ``law_output`` returns for a plain good output (a ``list`` or ``tuple`` of
     :data:`N_SERVOS` values, ``int`` s within ``lo..hi`` for ``servos``): the values as a tuple;
@@ -267,7 +248,6 @@ class ServoControl:
         "_stopped",
         "law_cost",
         "law_cycles_tick",
-        "_given",
     )
 
     def __init__(self, actuators: Actuators, has_foot: bool, signs: Sequence[int] = (1, 1, 1),
@@ -293,12 +273,6 @@ class ServoControl:
         self.law_cost: list[int] = [law_cycles(self.laws[t], t)[0] for t in range(len(BUILTIN_LAWS))]
         self.law_cycles_tick = 0
         self.inputs = LawInputs(scu, has_foot, self.signs)
-        # the tuples given to the laws last (_fill_inputs): measured, reference, output, forces,
-        # gains, CoP reference; the laws' inputs are tuples the board does not make again while
-        # their values stay (the gains, the CoP reference, a servo at rest)
-        inp = self.inputs
-        self._given: list[tuple] = [inp.measured, inp.reference, inp.output, inp.forces,
-                                    inp.gains, inp.cop_ref_mm]
         self.law_fault: LawFault | None = None       # the first law stopped on this board (kept)
         self._stopped: set[int] = set()               # control types whose law was stopped
 
@@ -459,17 +433,10 @@ class ServoControl:
     def _fill_inputs(self, measured: Sequence[int] | None, loaded: bool = False,
                      forces: Sequence[int] | None = None) -> LawInputs:
         inp = self.inputs
-        given = self._given
         if measured is not None:
-            if not _same(given[0], measured):
-                given[0] = tuple(measured)
-            inp.measured = given[0]
-        if not _same(given[1], self.reference):
-            given[1] = tuple(self.reference)
-        inp.reference = given[1]
-        if not _same(given[2], self.output):
-            given[2] = tuple(self.output)
-        inp.output = given[2]
+            inp.measured = tuple(measured)
+        inp.reference = tuple(self.reference)
+        inp.output = tuple(self.output)
         if loaded:
             f0, f1 = self.cop_f
             inp.cop_mm = ((f0 + 128) >> 8, (f1 + 128) >> 8)
@@ -477,18 +444,11 @@ class ServoControl:
         else:
             inp.cop_mm = None
             inp.cop_error_mm = (0, 0)
-        if not _same(given[5], self.cop_ref):
-            given[5] = (self.cop_ref[0], self.cop_ref[1])
-        inp.cop_ref_mm = given[5]
+        inp.cop_ref_mm = (self.cop_ref[0], self.cop_ref[1])
         if forces is not None:
-            if not _same(given[3], forces):
-                given[3] = tuple(forces)
-            inp.forces = given[3]
+            inp.forces = tuple(forces)
         c0, c1, c2 = self.actuators.control
-        g = given[4]
-        if not (_same_gains(g[0], c0) and _same_gains(g[1], c1) and _same_gains(g[2], c2)):
-            given[4] = ((c0.ki, c0.kp, c0.kd), (c1.ki, c1.kp, c1.kd), (c2.ki, c2.kp, c2.kd))
-        inp.gains = given[4]
+        inp.gains = ((c0.ki, c0.kp, c0.kd), (c1.ki, c1.kp, c1.kd), (c2.ki, c2.kp, c2.kd))
         return inp
 
     def filterCoP(self, cop_x: int, cop_y: int, loaded: bool) -> None:
