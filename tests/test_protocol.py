@@ -672,3 +672,22 @@ def test_control_and_status_bits_are_the_codecs_bits():
     assert st == (wire.STATUS_PWM | wire.STATUS_DEADLINE | wire.STATUS_ONE_FINISHED
                   | wire.STATUS_FINISHED[0] | wire.STATUS_FINISHED[2])
     assert cf.parse_status_byte(st) == (True, False, True, False, True, (True, False, True))
+
+
+def test_the_unpack_into_codecs_refuse_lists_too_short_and_leave_them_as_they_were():
+    """The Master's in-place codecs check their lists before writing (in the compiled core a
+    short list would be written past its end)."""
+    p1 = cf.pack_sensors1(3, (1, 2, 3), (4, 5, 6), 0)
+    p2 = cf.pack_sensors2(3, (10, 20, 30), (1, 2, 3, 4))
+    for pos, vel in [([0], [0, 0, 0]), ([0, 0, 0], []), (None, [0, 0, 0])]:
+        before = None if pos is None else list(pos)
+        with pytest.raises(ValueError, match="at least 3"):
+            cf.unpack_sensors1_into(p1, 3, pos, vel)
+        assert pos == before
+    for curr, data4 in [([0, 0], [0, 0, 0, 0]), ([0, 0, 0], [0, 0, 0]), ([0, 0, 0], None)]:
+        with pytest.raises(ValueError, match="at least 3 and 4"):
+            cf.unpack_sensors2_into(p2, 3, curr, data4)
+    pos, vel, curr, data4 = [0] * 3, [0] * 3, [0] * 3, [0] * 4
+    assert cf.unpack_sensors1_into(p1, 3, pos, vel) == 0 and pos == [1, 2, 3] and vel == [4, 5, 6]
+    cf.unpack_sensors2_into(p2, 3, curr, data4)
+    assert curr == [10, 20, 30] and data4 == [1, 2, 3, 4]

@@ -438,7 +438,10 @@ def unpack_sensors1_into(data: bytes, src: int, pos: list[int], vel: list[int]) 
     """:func:`unpack_sensors1` of a packet from slave ``src`` into lists (``canReceiveMsg`` on
     the Master, straight into its database: no tuple per packet): sets ``pos[0:3]`` and
     ``vel[0:3]``, returns the Status byte. The same ``PayloadError`` as :func:`unpack_sensors1`,
-    and one when the SFlags source is not ``src``; the lists are left as they were then."""
+    and one when the SFlags source is not ``src``; the lists are left as they were then (and on
+    the ``ValueError`` of a list shorter than 3)."""
+    if pos is None or vel is None or len(pos) < 3 or len(vel) < 3:
+        raise ValueError("unpack_sensors1_into: pos and vel must be lists of at least 3 items")
     b = _payload(data, "Sensors1")
     sf_src = _sensors1_source(b)
     if sf_src != src:
@@ -541,7 +544,9 @@ def unpack_sensors2_into(data: bytes, src: int, curr: list[int], data4: list[int
     """:func:`unpack_sensors2` of a packet from slave ``src`` into lists (``canReceiveMsg``, as
     :func:`unpack_sensors1_into`): sets ``curr[0:3]`` and ``data4[0:4]``. The same
     ``PayloadError`` as :func:`unpack_sensors2`, and one when the SFlags source is not ``src``;
-    the lists are left as they were then."""
+    the lists are left as they were then (and on the ``ValueError`` of a list too short)."""
+    if curr is None or data4 is None or len(curr) < 3 or len(data4) < 4:
+        raise ValueError("unpack_sensors2_into: curr and data4 must be lists of at least 3 and 4 items")
     b = _payload(data, "Sensors2")
     sf_src = _sensors2_source(b)
     if sf_src != src:
