@@ -554,3 +554,17 @@ def test_calibration_request_round_trip_with_a_real_slave(full: FullRig) -> None
     full.run_for(ROUND_US)
     act1 = [bytes(m.data) for m in full.drain() if m.arbitration_id == cf.can_id(0, 1, 0, cf.OP_ACTUATION)]
     assert act1 and cf.parse_control_byte(act1[-1][6])[:2] == (True, False)
+
+
+def test_cansendmsg_refuses_an_scu_or_a_packet_index_it_has_no_data_for(rig: Rig) -> None:
+    """``canSendMsg`` of an SCU outside 1..8 (no actuation data, as the database's KeyError) or
+    of a packet other than 0 and 1 is refused before anything is queued (the compiled core
+    would otherwise index its tables out of range)."""
+    mcan = rig.master.can
+    requests = rig.master.db.counters.can_tx_requests
+    for scu in (0, 9, -1, 2048):
+        with pytest.raises(KeyError):
+            mcan.canSendMsg(scu, 0)
+    with pytest.raises(ValueError, match="0 or 1"):
+        mcan.canSendMsg(3, 2)
+    assert rig.master.db.counters.can_tx_requests == requests

@@ -72,7 +72,13 @@ class MasterCan:
         three control types; packet 2: ``KI1..3 KP1..3 KD1 KD2`` (slide 20). The payloads are
         cached until the host changes the SCU's data. Packet 1 goes through TX buffer 0, packet 2
         through TX buffer 1 (slide 24). Returns False if the controller refused the request.
+        An SCU outside 1..8 is a ``KeyError`` (it has no actuation data), an index other than 0
+        and 1 a ``ValueError``.
         """
+        if not 1 <= scu <= N_SCU:
+            raise KeyError(scu)
+        if index != 0 and index != 1:
+            raise ValueError(f"canSendMsg: the actuation packet index is 0 or 1, got {index}")
         a = self._actuators[scu]
         c = self.db.counters
         c.can_tx_requests += 1
