@@ -12,6 +12,7 @@ from array import array
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from humanoid_twin.core import core_kind, is_compiled
 from humanoid_twin.plant import constants as C  # noqa: N812
@@ -252,3 +253,17 @@ def test_the_per_contact_force_path_gives_the_same_truth():
     slow = figures(probe())
     assert d.ncon >= 4 and fast == slow
     assert 20.0 < p.truth().cop_margin_mm == float.fromhex(fast[1])
+
+
+def test_the_hull_and_margin_refuse_arrays_too_short() -> None:
+    """The array forms check their lengths (compiled, a short array would be written or read
+    past its end)."""
+    z = np.zeros
+    with pytest.raises(ValueError, match="5 points"):
+        contacts.convex_hull_xy(5, z(5), z(5), z(9), z(10))
+    with pytest.raises(ValueError, match="5 points"):
+        contacts.convex_hull_xy(5, z(4), z(5), z(10), z(10))
+    with pytest.raises(ValueError, match="hull of 3 points"):
+        contacts.signed_distance_xy(0.0, 0.0, 3, z(2), z(3))
+    assert contacts.convex_hull_xy(0, z(0), z(0), z(0), z(0)) == 0
+    assert contacts.signed_distance_xy(0.0, 0.0, 0, z(0), z(0)) == -math.inf

@@ -52,7 +52,9 @@ def convex_hull_xy(n: int, xs: Any, ys: Any, hx: Any, hy: Any) -> int:
     its number of points. ``plant/geometry.convex_hull`` on arrays: the distinct points sorted
     (x, then y; ``xs``, ``ys`` are sorted in place), then Andrew's monotone chain,
     counter-clockwise, no repeated end point, collinear points dropped; 0, 1 or 2 distinct
-    points give a hull of that many points."""
+    points give a hull of that many points. Arrays too short for ``n`` are a ``ValueError``."""
+    if n < 0 or len(xs) < n or len(ys) < n or len(hx) < 2 * n or len(hy) < 2 * n:
+        raise ValueError(f"convex_hull_xy: {n} points need xs, ys of {n} and hx, hy of {2 * n} items")
     # sorted and distinct (as sorted(set(...)): of equal points the first stays), by insertion
     m = 0
     for i in range(n):
@@ -114,7 +116,10 @@ def convex_hull_xy(n: int, xs: Any, ys: Any, hx: Any, hy: Any) -> int:
 def signed_distance_xy(px: float, py: float, k: int, hx: Any, hy: Any) -> float:
     """``plant/geometry.signed_distance`` of the point (px, py) to the hull ``hx[:k]``,
     ``hy[:k]`` (counter-clockwise): positive inside, negative outside, zero on the boundary;
-    minus the distance to a point or a segment; ``-inf`` for no point."""
+    minus the distance to a point or a segment; ``-inf`` for no point. ``hx``, ``hy`` shorter
+    than ``k`` are a ``ValueError``."""
+    if k < 0 or len(hx) < k or len(hy) < k:
+        raise ValueError(f"signed_distance_xy: a hull of {k} points needs hx, hy of {k} items")
     if k == 0:
         return -_inf
     if k == 1:
