@@ -473,6 +473,16 @@ def test_recorder_rejects_bad_input(tmp_path, twin):
     with pytest.raises(ValueError, match="smaller chunk_s"):
         Recorder(tmp_path / "run.rrd", twin, chunk_s=3600)
     assert not (tmp_path / "run.rrd").exists()      # nothing created by a refused recorder
+
+
+def test_the_default_chunk_fits_a_short_sampling_period(tmp_path, twin):
+    """The default chunk is 30 simulated s, or the most rows a chunk may hold at a short period
+    (a 2 ms period would need 15 000 rows for 30 s; an explicit chunk_s that long is refused)."""
+    with Recorder(tmp_path / "fast.rrd", twin, period_us=2_000) as rec:
+        twin.run_for(0.1)
+    assert rec.samples >= 50
+    with pytest.raises(ValueError, match="smaller chunk_s"):
+        Recorder(tmp_path / "slow.rrd", twin, period_us=2_000, chunk_s=30.0)
     with pytest.raises(FileNotFoundError):
         read_rrd_entities(tmp_path / "nothing.rrd")
     junk = tmp_path / "junk.rrd"

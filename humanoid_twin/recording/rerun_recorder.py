@@ -129,7 +129,8 @@ class Recorder:
     ``path``: the ``.rrd`` file (checked writable here, before the run). ``period_us``: sampling
     period on the virtual clock (default one PWM period, 20 ms). ``app_id``: rerun application
     id (the viewer keys blueprints by it). ``chunk_s``: simulated seconds per ``send_columns``
-    chunk. ``scus``: the boards recorded (default all 8). ``blueprint``: send the default layout.
+    chunk (default :data:`DEFAULT_CHUNK_S`, 30 s, or the 10 000 rows of a shorter period; at most
+    10 000 rows). ``scus``: the boards recorded (default all 8). ``blueprint``: send the default layout.
     ``columns``: extra :class:`Column` s (recording/columns.py) sampled with the others.
     ``compact``: stream without rerun's in-memory footer index (flat memory) and rewrite the file
     compacted at :meth:`close` (default); False: rerun writes the final file directly.
@@ -148,7 +149,7 @@ class Recorder:
         period_us: int = PWM_PERIOD_US,
         app_id: str = "humanoid_twin",
         *,
-        chunk_s: float = DEFAULT_CHUNK_S,
+        chunk_s: float | None = None,
         scus: Iterable[int] = SCUS,
         blueprint: bool = True,
         columns: Sequence[Column] = (),
@@ -158,6 +159,8 @@ class Recorder:
         t_start = time.perf_counter()
         if isinstance(period_us, bool) or not isinstance(period_us, int) or period_us <= 0:
             raise ValueError(f"period_us must be a positive int of microseconds, got {period_us!r}")
+        if chunk_s is None:     # the default: DEFAULT_CHUNK_S, or fewer seconds at a short period
+            chunk_s = min(DEFAULT_CHUNK_S, _MAX_CHUNK_ROWS * period_us / US_PER_S)
         if isinstance(chunk_s, bool) or not isinstance(chunk_s, (int, float)) or not (
             math.isfinite(chunk_s) and chunk_s > 0
         ):
