@@ -146,6 +146,22 @@ def test_extra_columns_are_recorded_and_slow_ones_read_only_on_their_rows(tmp_pa
     assert np.allclose(t, np.arange(11) * 0.1) and v.tolist() == [0.0] + [100.0] * 10
 
 
+def test_a_batch_group_split_in_the_column_list_is_refused(tmp_path):
+    """A batch group's columns are derived together from one raw block a row: given apart
+    (another column between them) they could not be, and the recorder says so at once."""
+    def twice(t, raw, state):
+        return np.hstack([raw, raw]), state
+
+    batch = ColumnGroup(lambda t: (t.now_us,), finish=twice, raw_width=1)
+    a = batch.column("user/a", ("a",), "us")
+    b = batch.column("user/b", ("b",), "us")
+    other = Column("user/other", ("x",), "us", lambda t: (1.0,))
+    with Twin(seed=0) as twin:
+        with pytest.raises(ValueError, match="must be given together"):
+            Recorder(tmp_path / "split.rrd", twin, columns=[a, other, b])
+    assert not (tmp_path / "split.rrd").exists()
+
+
 def test_a_column_group_is_read_once_a_row_and_each_column_alone_reads_its_slice(tmp_path):
     calls: list[int] = []
 

@@ -196,13 +196,19 @@ def group_reader(cols: Sequence[Column], k: int) -> tuple[Callable[[Tick], Seque
                                                          ColumnGroup | None]:
     """The reader of ``cols[k:]``'s first values: the whole group's ``read`` when ``cols[k]`` opens
     a :class:`ColumnGroup` whose columns all follow it in ``cols``, else ``cols[k].read``; how
-    many columns of ``cols`` it reads; and the group (None for one column's own ``read``)."""
+    many columns of ``cols`` it reads; and the group (None for one column's own ``read``). A
+    batch group's columns (``finish``) apart in ``cols`` are a ``ValueError``: they are derived
+    together, from one raw block a row."""
     r = cols[k].read
-    if isinstance(r, _GroupSlice) and r.start == 0:
+    if isinstance(r, _GroupSlice):
         group = r.group
         m = len(group.columns)
-        if len(cols) - k >= m and all(a is b for a, b in zip(cols[k:k + m], group.columns, strict=True)):
+        if r.start == 0 and len(cols) - k >= m and all(
+                a is b for a, b in zip(cols[k:k + m], group.columns, strict=True)):
             return group.read, m, group
+        if group.finish is not None:
+            raise ValueError(f"column {cols[k].path!r}: the columns of a batch group (finish=) must "
+                             f"be given together, in the group's order, with one every")
     return r, 1, None
 
 
