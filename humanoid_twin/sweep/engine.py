@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, TextIO
 
+from humanoid_twin import signals
 from humanoid_twin.sweep.table import SweepError, cell, read_table, table_format, write_table
 
 BACKENDS = ("local", "ray")
@@ -169,9 +170,13 @@ def _local_cli(task: RunCli, points: list[Point], jobs: int) -> Iterable[dict[st
             while todo and len(running) < jobs:
                 p = todo.pop()
                 out, err = tempfile.TemporaryFile("w+"), tempfile.TemporaryFile("w+")
-                proc = subprocess.Popen(task.argv(p), stdout=out, stderr=err, stdin=subprocess.DEVNULL,
-                                        text=True, preexec_fn=_die_with_parent)
-                running[proc] = (p, time.monotonic(), out, err)
+                # a SIGINT/SIGTERM during the fork would be raised in the interpreter's at-fork
+                # callbacks, which print and drop exceptions (the signal lost, the sweep going
+                # on): held back until the run is started and in ``running``, then delivered
+                with signals.deferred():
+                    proc = subprocess.Popen(task.argv(p), stdout=out, stderr=err, stdin=subprocess.DEVNULL,
+                                            text=True, preexec_fn=_die_with_parent)
+                    running[proc] = (p, time.monotonic(), out, err)
             time.sleep(0.02)
             for proc, (p, t0, out, err) in list(running.items()):
                 late = task.timeout is not None and time.monotonic() - t0 > task.timeout + KILL_MARGIN_S
