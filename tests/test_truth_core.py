@@ -1,5 +1,5 @@
 """The ground truth's compiled arithmetic (humanoid_twin/plant/contacts.py) gives the same numbers,
-bit for bit, as the plain-Python reference: the hull and the margin of plant/geometry.py, and the
+bit for bit, as the plain-Python reference: the hull and the margin on point lists (below), and the
 contact scan, the CoPs, the tilt, the fall test and the soles as truth.py computed them on Python
 lists before. The run summary's figures (the goldens) are these numbers."""
 
@@ -9,6 +9,7 @@ import importlib.util
 import math
 import random
 from array import array
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
@@ -16,9 +17,8 @@ import pytest
 
 from humanoid_twin.core import core_kind, is_compiled
 from humanoid_twin.plant import constants as C  # noqa: N812
-from humanoid_twin.plant import contacts
+from humanoid_twin.plant import contacts, geometry
 from humanoid_twin.plant.contacts import RAD_PER_DEG, convex_hull_xy, signed_distance_xy
-from humanoid_twin.plant.geometry import convex_hull, signed_distance
 from humanoid_twin.plant.sensors import DEG_PER_RAD
 
 SOURCE = Path(contacts.__file__).with_name("contacts.py")
@@ -30,6 +30,80 @@ def _source_module():
     mod = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(mod)
     return mod
+
+
+def _ref_convex_hull(points: Sequence[Sequence[float]]) -> list[tuple[float, float]]:
+    """The plain-Python reference of the hull (Andrew's monotone chain on point lists, as
+    plant/geometry.py computed it before the compiled scan), counter-clockwise, no repeated end
+    point.
+
+    Collinear points on the hull's edges are dropped; 0, 1 or 2 distinct points give a
+    degenerate hull of that many points.
+    """
+    pts = sorted({(float(p[0]), float(p[1])) for p in points})
+    if len(pts) <= 2:
+        return pts
+    hull: list[tuple[float, float]] = []
+    for seq in (pts, pts[::-1]):              # the lower chain, then the upper one
+        # the chain's last two points o, a kept in locals; its first two are always taken
+        chain = seq[:2]
+        (ox, oy), (ax, ay) = chain
+        for p in seq[2:]:
+            bx, by = p
+            # o -> a -> b does not turn left (the cross product of o->a and o->b): drop a
+            while (ax - ox) * (by - oy) - (ay - oy) * (bx - ox) <= 0:
+                chain.pop()
+                ax, ay = ox, oy
+                if len(chain) < 2:
+                    break
+                ox, oy = chain[-2]
+            chain.append(p)
+            ox, oy, ax, ay = ax, ay, bx, by
+        hull += chain[:-1]
+    return hull
+
+
+def _ref_signed_distance(point: Sequence[float], hull: Sequence[tuple[float, float]]) -> float:
+    """The plain-Python reference of the CoP margin: signed distance of ``point`` to the convex
+    polygon ``hull`` (counter-clockwise).
+
+    Positive inside (distance to the nearest edge), negative outside (minus the distance to
+    the polygon), zero on the boundary. A degenerate hull (a point or a segment) has no
+    inside: the result is minus the distance to it. An empty hull gives ``-inf``.
+    """
+    if not hull:
+        return -math.inf
+    px, py = float(point[0]), float(point[1])
+    n = len(hull)
+    if n == 1:
+        return -math.hypot(px - hull[0][0], py - hull[0][1])
+    # the edges (a, b) of the polygon, the closing one first; a segment's one edge
+    if n == 2:
+        (ax, ay), verts = hull[0], hull[1:]
+    else:
+        ax, ay = hull[-1]
+        verts = hull
+    inside = True
+    nearest = math.inf
+    for bx, by in verts:
+        ex, ey = bx - ax, by - ay
+        # left of every edge of a counter-clockwise polygon = inside
+        if inside and ex * (py - ay) - ey * (px - ax) < 0.0:
+            inside = False
+        # the distance to the segment: to its point nearest to p
+        den = ex * ex + ey * ey
+        t = 0.0
+        if den != 0.0:      # clamped to the segment, as max(0.0, min(1.0, t)) (NaN -> 1.0)
+            t = ((px - ax) * ex + (py - ay) * ey) / den
+            t = t if t < 1.0 else 1.0
+            t = t if t > 0.0 else 0.0
+        dist = math.hypot(px - (ax + t * ex), py - (ay + t * ey))
+        if dist < nearest:
+            nearest = dist
+        ax, ay = bx, by
+    if n == 2:
+        return -dist
+    return nearest if inside else -nearest
 
 
 def _bits(x):
@@ -68,7 +142,8 @@ def test_hull_and_margin_match_the_reference_on_random_and_degenerate_points():
     mods = [contacts, _source_module()]
     checked = 0
     for pts in cases:
-        ref = convex_hull(pts)
+        ref = _ref_convex_hull(pts)
+        assert _bits(geometry.convex_hull(pts)) == _bits(ref), pts      # the point-list form
         queries = [(rng.uniform(-1.0, 1.0), rng.uniform(-1.0, 1.0)) for _ in range(4)]
         queries += [p for p in pts[:2]] + [(0.0, 0.0)]
         for mod in mods:
@@ -76,7 +151,8 @@ def test_hull_and_margin_match_the_reference_on_random_and_degenerate_points():
             assert _bits(hull) == _bits(ref), pts
             for qx, qy in queries:
                 got = mod.signed_distance_xy(qx, qy, h, hx, hy)
-                assert _bits(got) == _bits(signed_distance((qx, qy), ref)), (pts, qx, qy)
+                assert _bits(got) == _bits(_ref_signed_distance((qx, qy), ref)), (pts, qx, qy)
+                assert _bits(geometry.signed_distance((qx, qy), ref)) == _bits(got)
                 checked += 1
     assert checked > 40000
 
@@ -139,9 +215,9 @@ def _reference(geom, adr, pos, efc, pad, trunk, soles, xpos, xmat, com, spos, sm
         wy += f * xyz[1]
     tot = (pad_f[0] + pad_f[1] + pad_f[2] + pad_f[3], pad_f[4] + pad_f[5] + pad_f[6] + pad_f[7])
     total = tot[0] + tot[1]
-    hull = convex_hull([xyz for _, _, xyz in con])
+    hull = _ref_convex_hull([xyz for _, _, xyz in con])
     cop = (wx / total, wy / total) if total > C.LOADED_MIN_N else None
-    margin = signed_distance(cop, hull) * 1000.0 if cop is not None else -math.inf
+    margin = _ref_signed_distance(cop, hull) * 1000.0 if cop is not None else -math.inf
     cops = [foot_cop(f, con, tot[f]) if tot[f] > C.LOADED_MIN_N else None for f in range(2)]
     alone = []
     for f in range(2):

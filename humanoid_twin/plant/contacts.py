@@ -15,8 +15,8 @@ may then be nested lists, as ``TruthProbe`` hands them over: a numpy scalar a va
 than one ``tolist`` an array.)
 
 The figures are the same numbers on both cores: the same floating-point operations in the same
-order (tests/test_truth_core.py). The hull and the margin are the algorithms of
-``plant/geometry.py`` (the plain-Python reference, on point lists) written on arrays; Python's
+order (tests/test_truth_core.py). The hull and the margin work on arrays here
+(``plant/geometry.py`` gives them on point lists); Python's
 ``math.hypot`` is called on both cores (its result can differ from C's ``hypot`` in the last
 bit); ``math.degrees`` and ``math.radians`` are their products by ``DEG_PER_RAD`` and ``RAD_PER_DEG``.
 """
@@ -49,7 +49,7 @@ def _doubles(n: int) -> Any:
 
 def convex_hull_xy(n: int, xs: Any, ys: Any, hx: Any, hy: Any) -> int:
     """The convex hull of the ``n`` points ``(xs[i], ys[i])`` into ``hx``, ``hy`` (room for ``2 n``):
-    its number of points. ``plant/geometry.convex_hull`` on arrays: the distinct points sorted
+    its number of points (``plant/geometry.convex_hull`` on point lists): the distinct points sorted
     (x, then y; ``xs``, ``ys`` are sorted in place), then Andrew's monotone chain,
     counter-clockwise, no repeated end point, collinear points dropped; 0, 1 or 2 distinct
     points give a hull of that many points. Arrays too short for ``n`` are a ``ValueError``."""
@@ -114,7 +114,7 @@ def convex_hull_xy(n: int, xs: Any, ys: Any, hx: Any, hy: Any) -> int:
 
 
 def signed_distance_xy(px: float, py: float, k: int, hx: Any, hy: Any) -> float:
-    """``plant/geometry.signed_distance`` of the point (px, py) to the hull ``hx[:k]``,
+    """The signed distance (``plant/geometry.signed_distance``) of the point (px, py) to the hull ``hx[:k]``,
     ``hy[:k]`` (counter-clockwise): positive inside, negative outside, zero on the boundary;
     minus the distance to a point or a segment; ``-inf`` for no point. ``hx``, ``hy`` shorter
     than ``k`` are a ``ValueError``."""
