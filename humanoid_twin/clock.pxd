@@ -35,5 +35,5 @@ cdef class Clock:
     cpdef bint due_by(self, long long t_us) except -1
     cpdef bint skip_to(self, long long t_us)
     @cython.locals(n=cython.longlong, outer=cython.longlong, t=cython.longlong, period=cython.longlong,
-                   queue=list)
+                   seq=cython.longlong, queue=list)
     cpdef run_until(self, long long t_us)

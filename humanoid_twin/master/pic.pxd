@@ -38,8 +38,7 @@ cdef class Pic:
     cpdef initPic(self)
     cpdef isr_usart_rx(self, long long byte)
     cpdef isr_can_rx(self, object msg)
-    @cython.locals(now=cython.longlong)
+    @cython.locals(now=cython.longlong, slot=cython.longlong, cycles=cython.longlong, us=cython.longlong,
+                   load=cython.double)
     cpdef isr_timer(self)
     cpdef _isr_timer_late(self)
-    @cython.locals(slot=cython.longlong, cycles=cython.longlong, us=cython.longlong, load=cython.double)
-    cpdef _timer_slot(self, long long now)

@@ -103,7 +103,8 @@ class Pic:
 
     def isr_timer(self) -> None:
         """``isr``, timer interrupt every 250 us (fig. 4, slide 27): one slot of the CAN schedule
-        (served when the work before it ends, if it comes while that still runs)."""
+        and its cycles (humanoid_twin/cycles.py), served when the work before it ends if it
+        comes while that still runs (one more meanwhile is lost)."""
         now = self.clock.now_us
         if now < self.busy_until_us:
             if self._timer_pending:
@@ -112,14 +113,6 @@ class Pic:
                 self._timer_pending = True
                 self.clock.schedule(self.busy_until_us, self._late_cb)
             return
-        self._timer_slot(now)
-
-    def _isr_timer_late(self) -> None:
-        self._timer_pending = False
-        self._timer_slot(self.clock.now_us)
-
-    def _timer_slot(self, now: int) -> None:
-        """One slot of the CAN schedule and its cycles (humanoid_twin/cycles.py)."""
         slot = self.slot
         cycles = self.isr_cycles + (_C_TIMER_TX if slot == 0 or slot == 2 else _C_TIMER_RX)
         self.isr_cycles = 0
@@ -148,3 +141,9 @@ class Pic:
             else:
                 self.slot = 0
                 self.slave = self.slave % N_SCU + 1
+
+    def _isr_timer_late(self) -> None:
+        """The timer interrupt that came while the work before it ran, served at the instant
+        that work ends (where :meth:`isr_timer` serves it)."""
+        self._timer_pending = False
+        self.isr_timer()
