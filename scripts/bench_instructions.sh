@@ -32,4 +32,4 @@ ir() {   # the run's instruction count, or the run's error and exit 1
     { echo "$0: the run under valgrind failed ($py; set PYTHON=.venv/bin/python?):" >&2; tail -5 "$1" >&2; exit 1; }
 }
 a=$(ir "$tmp/vg4.txt"); b=$(ir "$tmp/vg8.txt")
-echo "flexao, $mode: $(( (b - a) / 4 / 1000000 )) M instructions per simulated second"
+echo "flexao, $mode: $(awk -v a="$a" -v b="$b" 'BEGIN { printf "%.1f", (b - a) / 4e6 }') M instructions per simulated second"

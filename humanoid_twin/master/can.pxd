@@ -31,10 +31,9 @@ cdef class MasterCan:
     cdef list _sensors
 
     cpdef canInit(self, object on_rx)
-    @cython.locals(a=ScuActuation, c=MasterCounters, ok=bint, kd=list)
+    @cython.locals(a=ScuActuation, c=MasterCounters, ok=bint, kd=list, drivers=CanDrivers, ctl=CanController,
+                   key=cython.longlong, msgs=list, msg=Frame)
     cpdef bint canSendMsg(self, long long scu, long long index)
-    @cython.locals(ctl=CanController, key=cython.longlong, msgs=list)
-    cpdef object _message(self, long long scu, long long index, object payload)
     cpdef canAbort(self)
     @cython.locals(msg=Frame, data=bytes, db=Database, c=MasterCounters, s=ScuSensors, ident=cython.longlong,
                    src=cython.longlong, index=cython.longlong)

@@ -87,26 +87,26 @@ class MasterCan:
             if p is None:
                 kd3 = a.kd[2]
                 p = a.payload1 = pack_actuation1(a.ref, a.speed, control_byte(a.pwm, a.calib, a.type), kd3)
-            ok = self.drivers.myCANSendMessage0(self._message(scu, 0, p))
         else:
             p = a.payload2
             if p is None:
                 kd = a.kd
                 p = a.payload2 = pack_actuation2(a.ki, a.kp, kd[0], kd[1])
-            ok = self.drivers.myCANSendMessage1(self._message(scu, 1, p))
-        if not ok:
-            c.can_tx_refused += 1
-        return ok
-
-    def _message(self, scu: int, index: int, payload: bytes) -> Frame:
-        """The actuation packet ``index`` of ``scu`` as a message, reused from its last request
-        when the controller holds none of the Master's frames any more (``load_tx``)."""
-        ctl = self.drivers.controller
+        # the message, reused from its last request when the controller holds none of the
+        # Master's frames any more (load_tx)
+        drivers = self.drivers
+        ctl = drivers.controller
         assert ctl is not None, "canInit attaches the controller before any canSendMsg"
         key = scu * 2 + index
         msgs = self._tx_msgs
-        msg = msgs[key] = ctl.load_tx(msgs[key], self._tx_ids[key], payload)
-        return msg
+        msg = msgs[key] = ctl.load_tx(msgs[key], self._tx_ids[key], p)
+        if index == 0:
+            ok = drivers.myCANSendMessage0(msg)
+        else:
+            ok = drivers.myCANSendMessage1(msg)
+        if not ok:
+            c.can_tx_refused += 1
+        return ok
 
     def canAbort(self) -> None:
         """Abort a pending actuation packet (slide 27, slots 1 and 3: TXABT)."""
