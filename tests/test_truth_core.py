@@ -329,7 +329,8 @@ def test_the_per_contact_force_path_gives_the_same_truth():
         t = pr.compute(p.t_us, 0.0)
         cops = [pr.foot_cop_mm(f).tolist() for f in range(2)]
         assert [list(pr.foot_cop_xy(f)) for f in range(2)] == cops      # the float path, the same numbers
-        return _bits([t.trunk_tilt_deg, t.cop_margin_mm, t.total_normal_force_n, t.fell, list(t.plain()), cops])
+        return _bits([t.trunk_tilt_deg, t.cop_margin_mm, t.total_normal_force_n, t.fell, list(t.plain()),
+                      cops])
 
     fast = figures(probe())
     visual = int(np.flatnonzero((m.geom_contype == 0) & (m.geom_conaffinity == 0))[0])
@@ -348,9 +349,11 @@ def test_the_imu_tilt_is_the_math_module_formula() -> None:
     for k in range(20000):
         span = 2.0 if k % 3 else 90.0
         r, p = rng.uniform(-span, span), rng.uniform(-span, span)
-        ref = math.degrees(math.acos(max(-1.0, min(1.0, math.cos(math.radians(r)) * math.cos(math.radians(p))))))
+        c = math.cos(math.radians(r)) * math.cos(math.radians(p))
+        ref = math.degrees(math.acos(max(-1.0, min(1.0, c))))
         assert tilt_from_roll_pitch(r, p) == ref, (r, p)
-    assert tilt_from_roll_pitch(0.0, 0.0) == 0.0 and tilt_from_roll_pitch(1, 2) == tilt_from_roll_pitch(1.0, 2.0)
+    assert tilt_from_roll_pitch(0.0, 0.0) == 0.0
+    assert tilt_from_roll_pitch(1, 2) == tilt_from_roll_pitch(1.0, 2.0)
 
 
 def test_the_hull_and_margin_refuse_arrays_too_short() -> None:
