@@ -26,17 +26,18 @@ class BoardReport:
         self.twin = twin
         self._err_sq = 0.0
         self._n = 0
+        self._board = board = twin.slaves[IMU_SCU]
+        self._plant = twin.plant
         if imu:
-            board = twin.slaves[IMU_SCU]
             twin.every(PWM_PERIOD_US, self.compare_imu, board.next_tick_us())
 
     def compare_imu(self) -> None:
         """Right after the body board's tick: the trunk tilt its inclinometer gives (its sensor
         database, the bytes ``readspecial(H, 5)`` returns) against the truth."""
-        board = self.twin.slaves[IMU_SCU]
+        board = self._board
         if not board.calibrated:
             return
-        roll, pitch, _, _ = self.twin.plant.trunk_attitude_deg()
+        roll, pitch, _, _ = self._plant.trunk_attitude_deg()
         m_roll, m_pitch, _, _ = imu_from_counts(board.sensors.special)
         d = tilt_from_roll_pitch(m_roll, m_pitch) - tilt_from_roll_pitch(roll, pitch)
         self._err_sq += d * d

@@ -11,6 +11,10 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from math import pi as _pi
+
+_RAD_PER_DEG = _pi / 180.0      # what math.radians multiplies by
+_DEG_PER_RAD = 180.0 / _pi      # what math.degrees multiplies by
 
 # --- boards (addresses 1..8 and their range check: protocol/wire.py) -------------------------
 SCU_NAMES: dict[int, str] = {
@@ -61,9 +65,15 @@ def imu_from_counts(special: Sequence[int]) -> tuple[float, float, float, float]
 
 
 def tilt_from_roll_pitch(roll_deg: float, pitch_deg: float) -> float:
-    """The angle (deg) between the trunk's z axis and the vertical, from its roll and pitch (ZYX)."""
-    c = math.cos(math.radians(roll_deg)) * math.cos(math.radians(pitch_deg))
-    return math.degrees(math.acos(max(-1.0, min(1.0, c))))
+    """The angle (deg) between the trunk's z axis and the vertical, from its roll and pitch (ZYX).
+
+    Compiled (hardware.pxd) with C's libm, the functions Python's math calls: ``math.radians``
+    and ``math.degrees`` are written as the products they are, the clamp to [-1, 1] as
+    ``max(-1.0, min(1.0, c))`` does it; the same number on both cores."""
+    c = math.cos(roll_deg * _RAD_PER_DEG) * math.cos(pitch_deg * _RAD_PER_DEG)
+    c = c if c < 1.0 else 1.0
+    c = c if c > -1.0 else -1.0
+    return math.acos(c) * _DEG_PER_RAD
 
 # The leg and hip boards (right leg, left leg, right hip, left hip): the legs the twin moves.
 LEG_SCUS: tuple[int, ...] = (1, 2, 3, 4)

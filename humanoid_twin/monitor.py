@@ -119,12 +119,11 @@ class Monitor:
         slave = twin.slaves[scu]
         if not slave.cop_loaded or twin.clock.now_us < self.start_s * US_PER_S or not slave.calibrated:
             return
-        truth = twin.plant.foot_cop_mm(foot)
+        truth = twin.plant.foot_cop_xy_mm(foot)
         if truth is None:
             return
-        tx, ty = truth.tolist()
-        dx = slave.cop_x - tx
-        dy = slave.cop_y - ty
+        dx = slave.cop_x - truth[0]
+        dy = slave.cop_y - truth[1]
         self._cop_err_sq += dx * dx + dy * dy
         self._cop_err_n += 1
 

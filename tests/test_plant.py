@@ -203,6 +203,7 @@ def test_lifting_one_foot_moves_the_whole_load_to_the_other(standing, lift_side)
     assert sensor_newtons(p, stance_scu) == pytest.approx(WEIGHT_N, rel=0.03)
     tr = p.truth()
     assert tr.foot_cop_mm[f"{lift_side}_foot"] is None and not tr.fell
+    assert p.foot_cop_mm(f"{lift_side}_foot") is None and p.foot_cop_xy_mm(f"{lift_side}_foot") is None
     assert len(tr.support_polygon_xy) == 4 and tr.cop_margin_mm > 0
 
 
@@ -221,6 +222,8 @@ def test_sensor_cop_equals_contact_cop_within_2_mm(standing, pose, axis, directi
         tr = p.truth()
         for scu, foot in H.FOOT_OF_SCU.items():
             truth = tr.foot_cop_mm[foot]
+            # the per-foot calls give the truth's numbers, as an array and as two floats
+            assert p.foot_cop_mm(foot).tolist() == truth.tolist() == list(p.foot_cop_xy_mm(foot))
             assert np.linalg.norm(sensor_cop_mm(p.read_force_adc(scu)) - truth) < 2.0
             assert truth[axis] * direction > 3.0       # the lean really moved the CoP
 
@@ -454,6 +457,11 @@ def test_bad_input_gets_clear_errors(tmp_path) -> None:
         p.read_servos(0)
     with pytest.raises(PlantInputError, match="SCU"):
         p.read_force_adc(-1)
+    for foot in ("r", "left", None, ["r_foot"]):
+        with pytest.raises(PlantInputError, match="unknown foot"):
+            p.foot_cop_mm(foot)
+        with pytest.raises(PlantInputError, match="unknown foot"):
+            p.foot_cop_xy_mm(foot)
     with pytest.raises(PlantInputError, match="600..2400"):
         p.set_pwm(1, [1500, 2500, 1500])
     with pytest.raises(PlantInputError, match="pulse"):

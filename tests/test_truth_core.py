@@ -11,6 +11,7 @@ import random
 from array import array
 from collections.abc import Sequence
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -267,6 +268,12 @@ def _scanned(mod, geom, adr, pos, efc, pad, trunk, soles, xpos, xmat, com, spos,
     t = scan.truth(geom, adr, pos, efc, True, tilt_p)
     alone = [scan.foot_cop(geom, adr, pos, efc, True, f) for f in range(2)]
     assert scan.soles_mm(tilt_p) == t.soles_mm and scan.fallen(t.tilt_deg, tilt_p) == t.fell
+    # the same scan reading the arrays off an MjData-like object itself (the probe's compiled path)
+    data = SimpleNamespace(contact=SimpleNamespace(geom=geom, efc_address=adr, pos=pos), efc_force=efc)
+    assert _bits([scan.foot_cop_of(data, f) for f in range(2)]) == _bits(alone)
+    t2 = scan.truth_of(data, tilt_p)
+    assert _bits([t2.margin_mm, t2.pad_forces_n, t2.foot_cop_mm, t2.hull]) == _bits(
+        [t.margin_mm, t.pad_forces_n, t.foot_cop_mm, t.hull])
     return [t.tilt_deg, t.height_m, t.fell, t.total_n, t.margin_mm, t.pad_forces_n, t.foot_cop_mm, t.cop_xy,
             t.hull, t.soles_mm, t.com, t.joints_rad, alone]
 
@@ -320,8 +327,10 @@ def test_the_per_contact_force_path_gives_the_same_truth():
 
     def figures(pr: TruthProbe):
         t = pr.compute(p.t_us, 0.0)
+        cops = [pr.foot_cop_mm(f).tolist() for f in range(2)]
+        assert [list(pr.foot_cop_xy(f)) for f in range(2)] == cops      # the float path, the same numbers
         return _bits([t.trunk_tilt_deg, t.cop_margin_mm, t.total_normal_force_n, t.fell, list(t.plain()),
-                      [pr.foot_cop_mm(f).tolist() for f in range(2)]])
+                      cops])
 
     fast = figures(probe())
     visual = int(np.flatnonzero((m.geom_contype == 0) & (m.geom_conaffinity == 0))[0])
@@ -329,6 +338,22 @@ def test_the_per_contact_force_path_gives_the_same_truth():
     slow = figures(probe())
     assert d.ncon >= 4 and fast == slow
     assert 20.0 < p.truth().cop_margin_mm == float.fromhex(fast[1])
+
+
+def test_the_imu_tilt_is_the_math_module_formula() -> None:
+    """``hardware.tilt_from_roll_pitch`` (compiled: C's libm, the degrees and radians as products)
+    gives the number the math module's formula gives: the summary's imu_tilt_error_rms_deg."""
+    from humanoid_twin.hardware import tilt_from_roll_pitch
+
+    rng = random.Random(11)
+    for k in range(20000):
+        span = 2.0 if k % 3 else 90.0
+        r, p = rng.uniform(-span, span), rng.uniform(-span, span)
+        c = math.cos(math.radians(r)) * math.cos(math.radians(p))
+        ref = math.degrees(math.acos(max(-1.0, min(1.0, c))))
+        assert tilt_from_roll_pitch(r, p) == ref, (r, p)
+    assert tilt_from_roll_pitch(0.0, 0.0) == 0.0
+    assert tilt_from_roll_pitch(1, 2) == tilt_from_roll_pitch(1.0, 2.0)
 
 
 def test_the_hull_and_margin_refuse_arrays_too_short() -> None:

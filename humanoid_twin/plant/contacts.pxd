@@ -73,6 +73,7 @@ cdef class ContactScan:
     cdef tuple _foot_cop(self, long k, long f, double total)
     @cython.locals(k=cython.long, fn=cython.double[::1], tot=cython.double, i=cython.long)
     cpdef object foot_cop(self, int[:, :] geom, int[:] adr, double[:, :] pos, double[:] force, bint edges, long f)
+    cpdef object foot_cop_of(self, object data, long f)
     cpdef double tilt_deg(self)
     @cython.locals(t=cython.long, xpos=cython.double[:, ::1], xmat=cython.double[:, ::1], a=cython.double,
                    s=cython.double, c=cython.double, height=cython.double)
@@ -89,3 +90,4 @@ cdef class ContactScan:
                    qadr=cython.longlong[::1])
     cpdef TruthSample truth(self, int[:, :] geom, int[:] adr, double[:, :] pos, double[:] force, bint edges,
                             double platform_tilt_deg)
+    cpdef TruthSample truth_of(self, object data, double platform_tilt_deg)

@@ -302,6 +302,13 @@ class ContactScan:
             return None
         return self._foot_cop(k, f, tot)
 
+    def foot_cop_of(self, data: Any, f: int) -> tuple[float, float] | None:
+        """:meth:`foot_cop` on the contacts of ``data`` (an ``MjData``: its ``contact`` and
+        ``efc_force`` read here, once) when every contact's normal force is its pyramid's edge
+        forces (``edges``): one call from the probe."""
+        con = data.contact
+        return self.foot_cop(con.geom, con.efc_address, con.pos, data.efc_force, True, f)
+
     def tilt_deg(self) -> float:
         """The trunk z axis' angle from the vertical (deg): element (2, 2) of its rotation matrix."""
         return _acos_deg(float(self._xmat[self._trunk, 8]))
@@ -338,6 +345,11 @@ class ContactScan:
             z = float(pos[site, 2])
             out.append(((c * x + s * z) * 1000.0, y * 1000.0, (c * z - s * x) * 1000.0))
         return out[0], out[1]
+
+    def truth_of(self, data: Any, platform_tilt_deg: float) -> TruthSample:
+        """:meth:`truth` on the contacts of ``data``, as :meth:`foot_cop_of`."""
+        con = data.contact
+        return self.truth(con.geom, con.efc_address, con.pos, data.efc_force, True, platform_tilt_deg)
 
     def truth(self, geom: Any, adr: Any, pos: Any, force: Any, edges: bool,
               platform_tilt_deg: float) -> TruthSample:

@@ -172,6 +172,8 @@ class Plant(BoardIO):
         # the boards' ADC front end (compiled): reads these MjData arrays in C
         d = self.data
         self._sense = SensorFrontEnd(d.qpos, d.qvel, d.actuator_force, d.sensordata)
+        self._qpos = d.qpos         # MjData's own arrays (fixed for its life): the truth's cache key
+        self._qvel = d.qvel
 
         # the hardware: potentiometer offsets, drawn once per plant (what calibration estimates)
         ss = np.random.SeedSequence(self.seed)
@@ -447,7 +449,7 @@ class Plant(BoardIO):
         once per physics instant (the monitor and the recorder ask at the same instants).
         """
         self._sync()
-        key = (self.t_us, self._tilt_deg, self._epoch, self.data.qpos.tobytes(), self.data.qvel.tobytes())
+        key = (self.t_us, self._tilt_deg, self._epoch, self._qpos.tobytes(), self._qvel.tobytes())
         if self._truth_key == key:
             return self._truth_cached
         self._truth_cached = self._truth.compute(self.t_us, self._tilt_deg)
@@ -465,10 +467,17 @@ class Plant(BoardIO):
     def foot_cop_mm(self, foot: str) -> np.ndarray | None:
         """Ground-truth CoP of one foot (foot frame, mm), None when unloaded: the part of
         :meth:`truth` a per-tick comparison needs, without the rest."""
+        cop = self.foot_cop_xy_mm(foot)
+        return None if cop is None else np.array(cop)
+
+    def foot_cop_xy_mm(self, foot: str) -> tuple[float, float] | None:
+        """:meth:`foot_cop_mm` as two floats (x, y), no array made: for a caller that computes
+        with them (the run monitor compares them with the firmware's at every leg-board tick)."""
         self._sync()
-        if foot not in FOOT_BODIES:
+        f = _FOOT_INDEX.get(foot) if isinstance(foot, str) else None
+        if f is None:
             raise PlantInputError(f"unknown foot {foot!r}; the feet are {', '.join(FOOT_BODIES)}")
-        return self._truth.foot_cop_mm(FOOT_BODIES.index(foot))
+        return self._truth.foot_cop_xy(f)
 
     # --- drawing ----------------------------------------------------------------------------------
     def body_poses(self) -> tuple[tuple[str, ...], np.ndarray, np.ndarray]:
@@ -520,5 +529,6 @@ class Plant(BoardIO):
 _RAD_PER_US = math.radians(1.0) / hardware.PULSE_US_PER_DEG
 _PULSE_MIN_US = hardware.pulse_from_deg(-POS_LIMIT_DEG)
 _PULSE_MAX_US = hardware.pulse_from_deg(POS_LIMIT_DEG)
+_FOOT_INDEX = {foot: f for f, foot in enumerate(FOOT_BODIES)}
 _SIDES = {"r": "r_foot", "right": "r_foot", "r_foot": "r_foot",
           "l": "l_foot", "left": "l_foot", "l_foot": "l_foot"}

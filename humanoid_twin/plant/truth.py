@@ -189,6 +189,8 @@ class TruthProbe:
         # interpreted, the scan reads the contacts' arrays as lists: one tolist an array costs less
         # than a numpy scalar a value (compiled, it reads them in place)
         self._as_lists = not is_compiled(contacts)
+        # compiled, with the edge sums: the scan reads the contacts off the data itself (one call)
+        self._of_data = self._edges and not self._as_lists
         d = data
         self._scan = ContactScan(array("i", pad_list), self.sole_sites, trunk,
                                  np.ascontiguousarray(joint_qadr, dtype=np.int64), d.xpos, d.xmat,
@@ -217,6 +219,8 @@ class TruthProbe:
         ``platform_tilt_deg``)."""
         # the contacts' arrays (ncon long, made anew at each read: MuJoCo moves them), once
         d = self.data
+        if self._of_data:
+            return GroundTruth(t_us / US_PER_S, self._scan.truth_of(d, platform_tilt_deg), self.joint_names)
         con = d.contact
         adr = con.efc_address
         edges = self._edges
@@ -244,16 +248,22 @@ class TruthProbe:
         foot does not move it (``slip_mm`` of a run)."""
         return self._scan.soles_mm(platform_tilt_deg)
 
-    def foot_cop_mm(self, f: int) -> np.ndarray | None:
-        """The CoP of foot index ``f`` (``FOOT_BODIES`` order; foot frame, mm), None when unloaded."""
+    def foot_cop_xy(self, f: int) -> tuple[float, float] | None:
+        """The CoP of foot index ``f`` (``FOOT_BODIES`` order; foot frame, mm) as two floats, None
+        when unloaded."""
         d = self.data
+        if self._of_data:
+            return self._scan.foot_cop_of(d, f)
         con = d.contact
         adr = con.efc_address
         edges = self._edges
         force = d.efc_force if edges else self._forces(adr)
         if self._as_lists:
-            cop = self._scan.foot_cop(con.geom.tolist(), adr.tolist(), con.pos.tolist(), force.tolist(),
-                                      edges, f)
-        else:
-            cop = self._scan.foot_cop(con.geom, adr, con.pos, force, edges, f)
+            return self._scan.foot_cop(con.geom.tolist(), adr.tolist(), con.pos.tolist(), force.tolist(),
+                                       edges, f)
+        return self._scan.foot_cop(con.geom, adr, con.pos, force, edges, f)
+
+    def foot_cop_mm(self, f: int) -> np.ndarray | None:
+        """The CoP of foot index ``f`` (``FOOT_BODIES`` order; foot frame, mm), None when unloaded."""
+        cop = self.foot_cop_xy(f)
         return None if cop is None else np.array(cop)
