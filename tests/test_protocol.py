@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import importlib.util
 import itertools
+import re
 from pathlib import Path
 
 import can
@@ -525,6 +526,17 @@ def test_sensors2_fields_pack_as_pack_sensors2(src, curr, data4, law_stopped) ->
     """The Slave's per-tick codec gives pack_sensors2's bytes, or its error, for the same fields."""
     want = _packed(cf.pack_sensors2, src, tuple(curr), tuple(data4), law_stopped)
     assert _packed(cf.pack_sensors2_fields, src, *curr, *data4, law_stopped) == want
+
+
+def test_pack_errors_name_every_field_as_the_packet_does() -> None:
+    """A sensor packet the Slave cannot pack (a special value out of its byte) is reported with
+    its fields as the packets' other pack errors name them: Data1..4 as ``data``, not as the
+    fourth byte's name."""
+    msg = "Sensors2: cannot pack src=3, curr=(1, 2, 3), data=(4, 5, 6, 300): "
+    with pytest.raises(PayloadError, match=re.escape(msg)):
+        cf.pack_sensors2_fields(3, 1, 2, 3, 4, 5, 6, 300, False)
+    with pytest.raises(PayloadError, match=re.escape(msg)):
+        cf.pack_sensors2(3, (1, 2, 3), (4, 5, 6, 300))
 
 
 def test_payload_byte_layouts() -> None:

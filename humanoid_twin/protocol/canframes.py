@@ -601,7 +601,7 @@ def pack_sensors2(src: int, curr: Sequence[int], data4: Sequence[int], law_stopp
         sf = (src << SFLAGS_SOURCE_SHIFT) | SFLAGS_INDEX | (SFLAGS2_LAW if law_stopped else 0)
         return _SEN2.pack(sf, c1, c2, c3, d1, d2, d3, d4)
     except (struct.error, TypeError, ValueError) as exc:
-        raise _pack_error("Sensors2", exc, src=src, curr=curr, data4=data4) from None
+        raise _pack_error("Sensors2", exc, src=src, curr=curr, data=data4) from None
 
 
 def pack_sensors2_fields(src: int, curr1: int, curr2: int, curr3: int, data1: int, data2: int, data3: int,
