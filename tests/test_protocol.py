@@ -730,3 +730,7 @@ def test_the_unpack_into_codecs_refuse_lists_too_short_and_leave_them_as_they_we
     assert cf.unpack_sensors1_into(p1, 3, pos, vel) == 0 and pos == [1, 2, 3] and vel == [4, 5, 6]
     cf.unpack_sensors2_into(p2, 3, curr, data4)
     assert curr == [10, 20, 30] and data4 == [1, 2, 3, 4]
+    # the Slave's: no record, a ValueError (in the compiled core it would be written through None)
+    for unpack in (cf.unpack_actuation1_into, cf.unpack_actuation2_into):
+        with pytest.raises(ValueError, match="ActuationFields"):
+            unpack(bytes(8), None)
