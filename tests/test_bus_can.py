@@ -240,6 +240,28 @@ def test_load_tx_checks_the_frame_once():
         nodes[1].load_tx(None, 0x100, bytes(9))
 
 
+def test_a_reloaded_frame_takes_the_wire_for_its_own_length():
+    """load_tx keeps a reloaded frame's length for the same ID and payload (the same bytes, or
+    equal ones) and measures it again otherwise: each frame ends on the wire after its own bits
+    (a zero payload needs stuff bits, 0x55 none)."""
+    clock = Clock()
+    net = CanNetwork(clock)
+    got = []
+    a = net.attach("a", None, lambda m: None)
+    net.attach("b", None, lambda m: got.append(clock.now_us))
+    msg = None
+    zeros = bytes(8)
+    for arb, payload in [(0x100, zeros), (0x100, zeros), (0x100, bytes(bytearray(8))),
+                         (0x100, b"\x55" * 8), (0x101, b"\x55" * 8), (0x100, zeros)]:
+        msg = a.load_tx(msg, arb, payload)
+        assert msg.bits == frame_bits(arb, payload)
+        start = clock.now_us
+        a.send(msg)
+        clock.run_until(start + 1000)
+        assert got[-1] - start == frame_bits(arb, payload) - 3
+    assert len(got) == 6 and frame_bits(0x100, zeros) != frame_bits(0x100, b"\x55" * 8)
+
+
 def test_bitrate_scales_frame_time():
     clock = Clock()
     net = CanNetwork(clock, bitrate=125_000)     # 8 us per bit

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import importlib.util
 import itertools
+import re
 from pathlib import Path
 
 import can
@@ -475,6 +476,33 @@ def test_sensors2_into_stores_what_unpack_sensors2_reads(sf, rest, src) -> None:
         assert (got, tuple(curr), tuple(data4)) == (None, want[2], want[3])
 
 
+_ACT_FIELDS = ("ref1", "ref2", "ref3", "speed1", "speed2", "speed3", "control", "pwm", "calib", "type1",
+               "type2", "type3", "kd3", "ki1", "ki2", "ki3", "kp1", "kp2", "kp3", "kd1", "kd2")
+
+
+@given(st.binary(min_size=7, max_size=9), st.booleans())
+def test_actuation_into_stores_what_unpack_actuation_reads(data, second) -> None:
+    """The Slave's receive codec writes unpack_actuation1/2's fields (and the Control byte as
+    parse_control_byte reads it) into its record, or raises their error and leaves it as it was."""
+    f = cf.ActuationFields()
+    for k in _ACT_FIELDS:
+        setattr(f, k, 1)
+    got = _unpacked(cf.unpack_actuation2_into if second else cf.unpack_actuation1_into, data, f)
+    want = _unpacked(cf.unpack_actuation2 if second else cf.unpack_actuation1, bytearray(data))
+    fields = {k: getattr(f, k) for k in _ACT_FIELDS}
+    if isinstance(want, str):
+        assert (got, fields) == (want, dict.fromkeys(_ACT_FIELDS, 1))
+    elif second:
+        assert got is None
+        assert ((f.ki1, f.ki2, f.ki3), (f.kp1, f.kp2, f.kp3), f.kd1, f.kd2) == want
+        assert all(fields[k] == 1 for k in _ACT_FIELDS if not k.startswith(("ki", "kp", "kd1", "kd2")))
+    else:
+        assert got is None
+        assert ((f.ref1, f.ref2, f.ref3), (f.speed1, f.speed2, f.speed3), f.control, f.kd3) == want
+        assert (f.pwm, f.calib, (f.type1, f.type2, f.type3)) == cf.parse_control_byte(want[2])
+        assert all(fields[k] == 1 for k in _ACT_FIELDS[13:])
+
+
 def _packed(pack, *args) -> bytes | str:
     """A pack function's bytes, or the message of the PayloadError it raised."""
     try:
@@ -498,6 +526,17 @@ def test_sensors2_fields_pack_as_pack_sensors2(src, curr, data4, law_stopped) ->
     """The Slave's per-tick codec gives pack_sensors2's bytes, or its error, for the same fields."""
     want = _packed(cf.pack_sensors2, src, tuple(curr), tuple(data4), law_stopped)
     assert _packed(cf.pack_sensors2_fields, src, *curr, *data4, law_stopped) == want
+
+
+def test_pack_errors_name_every_field_as_the_packet_does() -> None:
+    """A sensor packet the Slave cannot pack (a special value out of its byte) is reported with
+    its fields as the packets' other pack errors name them: Data1..4 as ``data``, not as the
+    fourth byte's name."""
+    msg = "Sensors2: cannot pack src=3, curr=(1, 2, 3), data=(4, 5, 6, 300): "
+    with pytest.raises(PayloadError, match=re.escape(msg)):
+        cf.pack_sensors2_fields(3, 1, 2, 3, 4, 5, 6, 300, False)
+    with pytest.raises(PayloadError, match=re.escape(msg)):
+        cf.pack_sensors2(3, (1, 2, 3), (4, 5, 6, 300))
 
 
 def test_payload_byte_layouts() -> None:
@@ -691,3 +730,7 @@ def test_the_unpack_into_codecs_refuse_lists_too_short_and_leave_them_as_they_we
     assert cf.unpack_sensors1_into(p1, 3, pos, vel) == 0 and pos == [1, 2, 3] and vel == [4, 5, 6]
     cf.unpack_sensors2_into(p2, 3, curr, data4)
     assert curr == [10, 20, 30] and data4 == [1, 2, 3, 4]
+    # the Slave's: no record, a ValueError (in the compiled core it would be written through None)
+    for unpack in (cf.unpack_actuation1_into, cf.unpack_actuation2_into):
+        with pytest.raises(ValueError, match="ActuationFields"):
+            unpack(bytes(8), None)

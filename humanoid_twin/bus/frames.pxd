@@ -21,8 +21,9 @@ cdef class Frame:
     cdef public double timestamp
     cdef public object channel
     cdef public bint is_rx
+    cdef public long long bits
 
     cpdef object to_message(self)
 
-cpdef Frame load_frame(Frame frame, long arbitration_id, bytes data)
+cpdef Frame load_frame(Frame frame, long arbitration_id, bytes data, long long bits)
 cpdef object as_message(object msg)

@@ -144,12 +144,13 @@ class Frame:
     ``data``, ``timestamp``, ``channel``, ``is_rx``; ``is_extended_id``, ``is_remote_frame``,
     ``is_error_frame`` and ``is_fd`` are always False).
 
-    ``data`` is ``bytes`` (0..8). :meth:`CanController.load_tx` builds (or reloads) one; the wire
-    stamps it at the end of its EOF. A listener, a logger, a foreign python-can bus and a tool's
-    bus on the same channel get a :class:`can.Message` instead (:meth:`to_message`), built only
-    for them."""
+    ``data`` is ``bytes`` (0..8). :meth:`CanController.load_tx` builds (or reloads) one and
+    measures it (``bits``: its length on the wire, :func:`frame_bits`; 0 for a frame built
+    otherwise, not measured); the wire stamps it at the end of its EOF. A listener, a logger, a
+    foreign python-can bus and a tool's bus on the same channel get a :class:`can.Message`
+    instead (:meth:`to_message`), built only for them."""
 
-    __slots__ = ("arbitration_id", "dlc", "data", "timestamp", "channel", "is_rx")
+    __slots__ = ("arbitration_id", "dlc", "data", "timestamp", "channel", "is_rx", "bits")
 
     is_extended_id = False
     is_remote_frame = False
@@ -164,6 +165,7 @@ class Frame:
         self.timestamp = timestamp
         self.channel = channel
         self.is_rx = is_rx
+        self.bits = 0
 
     def __repr__(self) -> str:
         return (f"Frame(0x{self.arbitration_id:03X}, [{self.data.hex(' ').upper()}], "
@@ -176,9 +178,10 @@ class Frame:
                            data=self.data, is_rx=self.is_rx)
 
 
-def load_frame(frame: Frame | None, arbitration_id: int, data: bytes) -> Frame:
+def load_frame(frame: Frame | None, arbitration_id: int, data: bytes, bits: int) -> Frame:
     """``frame`` reloaded with ``arbitration_id`` and ``data`` (``bytes``, 0..8, checked by the
-    caller), unsent (no timestamp, no channel); a new frame when ``frame`` is None."""
+    caller) and its length ``bits`` (:func:`frame_bits` of both), unsent (no timestamp, no
+    channel); a new frame when ``frame`` is None."""
     if frame is None:
         frame = Frame.__new__(Frame)
     frame.arbitration_id = arbitration_id
@@ -187,6 +190,7 @@ def load_frame(frame: Frame | None, arbitration_id: int, data: bytes) -> Frame:
     frame.timestamp = 0.0
     frame.channel = None
     frame.is_rx = False
+    frame.bits = bits
     return frame
 
 

@@ -63,7 +63,7 @@ cdef class CanController:
     cpdef bint send_at(self, object msg, long long t_us) except -1
     cpdef long long abort(self) except -1
     cpdef clear_status(self)
-    @cython.locals(data=bytes, n=cython.longlong, frame=Frame)
+    @cython.locals(data=bytes, n=cython.longlong, frame=Frame, last=Frame, bits=cython.longlong)
     cpdef Frame load_tx(self, object msg, int arbitration_id, object payload)
 
 

@@ -12,6 +12,7 @@ cimport cython
 # C constants of the codecs (private names and aliases; canframes.py)
 cdef long _CAN_STATE, _CAN_STATE_MAX, _SUPERVISOR, _LAW, _CURRENT_MAX, _SF_SHIFT, _SF_INDEX
 cdef long _ADDR_MASK, _SFLAGS_LOW, _SRC_SHIFT, _DST_SHIFT, _INDEX_SHIFT, _OP_MASK, _PAYLOAD_LEN
+cdef long _PWM, _CALIB, _TYPE_BITS, _TYPE_MASK
 cdef tuple _INT8
 
 cdef bint _COMPILED
@@ -26,17 +27,29 @@ cpdef tuple split_id(object arbitration_id)
 cpdef long packet_index(long arbitration_id) except? -1
 cpdef long control_byte(object pwm, object calib, object types) except? -1
 cpdef tuple parse_control_byte(object b)
+
+# the Slave's receive path: an actuation packet's fields written into its record (C fields)
+cdef class ActuationFields:
+    cdef public long ref1, ref2, ref3, speed1, speed2, speed3, control
+    cdef public bint pwm, calib
+    cdef public long type1, type2, type3, kd3, ki1, ki2, ki3, kp1, kp2, kp3, kd1, kd2
+
+cdef void _control_into(long b, ActuationFields out) noexcept
 cpdef long status_byte(object pwm, object calib, object deadline, object fin_all, object fin_one,
                        object fin) except? -1
 cpdef object parse_status_byte(object b)
 cpdef long sflags(object src, object index) except? -1
 cpdef long _split_sflags(long sf, long index, str packet) except? -1
 cpdef bytes pack_actuation1(object refs, object speeds, object control, object kd3)
-@cython.locals(b=bytes, i8=tuple)
+@cython.locals(f=ActuationFields)
 cpdef tuple unpack_actuation1(object data)
+@cython.locals(b=bytes, i8=tuple)
+cpdef unpack_actuation1_into(object data, ActuationFields out)
 cpdef bytes pack_actuation2(object ki, object kp, object kd1, object kd2)
-@cython.locals(b=bytes)
+@cython.locals(f=ActuationFields)
 cpdef tuple unpack_actuation2(object data)
+@cython.locals(b=bytes)
+cpdef unpack_actuation2_into(object data, ActuationFields out)
 cpdef bytes pack_sensors1(object src, object pos, object speed, object status, object flags=*)
 @cython.locals(b=bytes, src=cython.long, pos=list, vel=list, status=cython.long)
 cpdef tuple unpack_sensors1(object data)

@@ -80,10 +80,13 @@ __all__ = [
     "ID_FIELDS",
     "SFLAGS2_LAW",
     "sflags",
+    "ActuationFields",
     "pack_actuation1",
     "unpack_actuation1",
+    "unpack_actuation1_into",
     "pack_actuation2",
     "unpack_actuation2",
+    "unpack_actuation2_into",
     "pack_sensors1",
     "pack_sensors1_fields",
     "unpack_sensors1",
@@ -211,11 +214,60 @@ def control_byte(pwm: bool, calib: bool, types: Sequence[int]) -> int:
     raise PayloadError(f"control types must be 3 integers 0..3 (servo 1, 2, 3), got {types!r}")
 
 
+class ActuationFields:
+    """The fields of an actuation packet (slide 20) as a record the caller owns and reuses:
+    :func:`unpack_actuation1_into` and :func:`unpack_actuation2_into` write their packet's fields
+    into it (the Slave's ``receiveCanMessage``: no tuple per packet; C fields in the compiled
+    core, canframes.pxd). Actuation 1: ``ref1..3`` (int8 degrees), ``speed1..3`` (period in
+    ticks), ``control`` (the Control byte) read as ``pwm``, ``calib``, ``type1..3`` (servo 1, 2,
+    3), ``kd3``. Actuation 2: ``ki1..3``, ``kp1..3``, ``kd1``, ``kd2``."""
+
+    __slots__ = ("ref1", "ref2", "ref3", "speed1", "speed2", "speed3", "control", "pwm", "calib",
+                 "type1", "type2", "type3", "kd3", "ki1", "ki2", "ki3", "kp1", "kp2", "kp3", "kd1",
+                 "kd2")
+
+    def __init__(self) -> None:
+        self.ref1 = self.ref2 = self.ref3 = 0
+        self.speed1 = self.speed2 = self.speed3 = 0
+        self.control = 0
+        self.pwm = self.calib = False
+        self.type1 = self.type2 = self.type3 = 0
+        self.kd3 = 0
+        self.ki1 = self.ki2 = self.ki3 = 0
+        self.kp1 = self.kp2 = self.kp3 = 0
+        self.kd1 = self.kd2 = 0
+
+
+def _control_into(b: int, out: ActuationFields) -> None:
+    """The Control byte ``b`` (0..255) into ``out.control``, ``pwm``, ``calib``, ``type1..3``:
+    the one reading of its bits (:func:`control_byte` writes them; :func:`parse_control_byte`'s
+    table is built from this)."""
+    out.control = b
+    out.pwm = (b & _PWM) != 0
+    out.calib = (b & _CALIB) != 0
+    out.type1 = b & _TYPE_MASK
+    out.type2 = (b >> _TYPE_BITS) & _TYPE_MASK
+    out.type3 = (b >> 2 * _TYPE_BITS) & _TYPE_MASK
+
+
+def _control_fields(b: int) -> tuple[int, bool, bool, int, int, int]:
+    f = ActuationFields()
+    _control_into(b, f)
+    return f.control, f.pwm, f.calib, f.type1, f.type2, f.type3
+
+
+# C constants of the Control byte's bits (canframes.pxd; the public names are wire.py's)
+_PWM = CONTROL_PWM
+_CALIB = CONTROL_CALIB
+_TYPE_BITS = CONTROL_TYPE_BITS
+_TYPE_MASK = CONTROL_TYPE_MASK
+# every Control byte's fields: (control, pwm, calib, type1, type2, type3), and as
+# parse_control_byte returns them
+_CONTROL_FIELDS: tuple[tuple[int, bool, bool, int, int, int], ...] = tuple(
+    _control_fields(b) for b in range(256)
+)
 _CONTROL_TABLE: tuple[tuple[bool, bool, tuple[int, int, int]], ...] = tuple(
-    (bool(b & CONTROL_PWM), bool(b & CONTROL_CALIB),
-     (b & CONTROL_TYPE_MASK, (b >> CONTROL_TYPE_BITS) & CONTROL_TYPE_MASK,
-      (b >> 2 * CONTROL_TYPE_BITS) & CONTROL_TYPE_MASK))
-    for b in range(256)
+    (pwm, calib, (t1, t2, t3)) for _, pwm, calib, t1, t2, t3 in _CONTROL_FIELDS
 )
 
 
@@ -366,11 +418,31 @@ def pack_actuation1(refs: Sequence[int], speeds: Sequence[int], control: int, kd
 
 
 def unpack_actuation1(data: bytes) -> tuple[tuple[int, int, int], tuple[int, int, int], int, int]:
-    """Actuation 1 payload -> ``((ref1, ref2, ref3), (speed1, speed2, speed3), control, kd3)``
-    (``receiveCanMessage`` on the Slave)."""
-    b = _payload(data, "Actuation1")
+    """Actuation 1 payload -> ``((ref1, ref2, ref3), (speed1, speed2, speed3), control, kd3)``."""
+    f = ActuationFields()
+    unpack_actuation1_into(data, f)
+    return (f.ref1, f.ref2, f.ref3), (f.speed1, f.speed2, f.speed3), f.control, f.kd3
+
+
+def unpack_actuation1_into(data: bytes, out: ActuationFields) -> None:
+    """:func:`unpack_actuation1` into the record ``out`` (``receiveCanMessage`` on the Slave):
+    sets ``ref1..3``, ``speed1..3``, ``control`` and its bits (``pwm``, ``calib``, ``type1..3``),
+    ``kd3``. The same ``PayloadError``, and ``out`` left as it was then."""
+    if out is None:
+        raise ValueError("unpack_actuation1_into: out must be an ActuationFields")
+    b = data if type(data) is bytes and len(data) == _PAYLOAD_LEN else _payload(data, "Actuation1")
     i8 = _INT8
-    return (i8[b[0]], i8[b[1]], i8[b[2]]), (b[3], b[4], b[5]), b[6], b[7]
+    out.ref1 = i8[b[0]]
+    out.ref2 = i8[b[1]]
+    out.ref3 = i8[b[2]]
+    out.speed1 = b[3]
+    out.speed2 = b[4]
+    out.speed3 = b[5]
+    if _COMPILED:       # C bit operations
+        _control_into(b[6], out)
+    else:               # interpreted: its table (built by _control_into), no call
+        out.control, out.pwm, out.calib, out.type1, out.type2, out.type3 = _CONTROL_FIELDS[b[6]]
+    out.kd3 = b[7]
 
 
 def pack_actuation2(ki: Sequence[int], kp: Sequence[int], kd1: int, kd2: int) -> bytes:
@@ -385,8 +457,25 @@ def pack_actuation2(ki: Sequence[int], kp: Sequence[int], kd1: int, kd2: int) ->
 
 def unpack_actuation2(data: bytes) -> tuple[tuple[int, int, int], tuple[int, int, int], int, int]:
     """Actuation 2 payload -> ``((ki1, ki2, ki3), (kp1, kp2, kp3), kd1, kd2)``."""
-    b = _payload(data, "Actuation2")
-    return (b[0], b[1], b[2]), (b[3], b[4], b[5]), b[6], b[7]
+    f = ActuationFields()
+    unpack_actuation2_into(data, f)
+    return (f.ki1, f.ki2, f.ki3), (f.kp1, f.kp2, f.kp3), f.kd1, f.kd2
+
+
+def unpack_actuation2_into(data: bytes, out: ActuationFields) -> None:
+    """:func:`unpack_actuation2` into the record ``out``: sets ``ki1..3``, ``kp1..3``, ``kd1``,
+    ``kd2``. The same ``PayloadError``, and ``out`` left as it was then."""
+    if out is None:
+        raise ValueError("unpack_actuation2_into: out must be an ActuationFields")
+    b = data if type(data) is bytes and len(data) == _PAYLOAD_LEN else _payload(data, "Actuation2")
+    out.ki1 = b[0]
+    out.ki2 = b[1]
+    out.ki3 = b[2]
+    out.kp1 = b[3]
+    out.kp2 = b[4]
+    out.kp3 = b[5]
+    out.kd1 = b[6]
+    out.kd2 = b[7]
 
 
 def pack_sensors1(src: int, pos: Sequence[int], speed: Sequence[int], status: int, flags: int = 0) -> bytes:
@@ -512,7 +601,7 @@ def pack_sensors2(src: int, curr: Sequence[int], data4: Sequence[int], law_stopp
         sf = (src << SFLAGS_SOURCE_SHIFT) | SFLAGS_INDEX | (SFLAGS2_LAW if law_stopped else 0)
         return _SEN2.pack(sf, c1, c2, c3, d1, d2, d3, d4)
     except (struct.error, TypeError, ValueError) as exc:
-        raise _pack_error("Sensors2", exc, src=src, curr=curr, data4=data4) from None
+        raise _pack_error("Sensors2", exc, src=src, curr=curr, data=data4) from None
 
 
 def pack_sensors2_fields(src: int, curr1: int, curr2: int, curr3: int, data1: int, data2: int, data3: int,

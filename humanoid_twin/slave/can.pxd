@@ -10,11 +10,11 @@ from humanoid_twin.bus.network cimport CanController
 from humanoid_twin.clock cimport Clock
 from humanoid_twin.protocol.canframes cimport (
     pack_sensors1_fields,
+    ActuationFields,
     pack_sensors2_fields,
-    parse_control_byte,
     status_byte,
-    unpack_actuation1,
-    unpack_actuation2,
+    unpack_actuation1_into,
+    unpack_actuation2_into,
 )
 from humanoid_twin.slave.database cimport (
     ActuatorServo,
@@ -48,6 +48,7 @@ cdef class SlaveCan:
     cdef public dict _rx_index
     cdef public long _rx_id1
     cdef public long _rx_id2
+    cdef ActuationFields _rx_fields
     cdef public list _tx_msgs
     cdef public object _isr_send_cb
     cdef public long _tx_index
@@ -73,7 +74,7 @@ cdef class SlaveCan:
     cpdef _isr_send(self)
     @cython.locals(act=Actuators, sys_=ActuatorStatus, st=SensorStatus, a0=ActuatorServo,
                    a1=ActuatorServo, a2=ActuatorServo, c0=Control, c1=Control, c2=Control, pwm=bint,
-                   calib=bint)
+                   calib=bint, f=ActuationFields)
     cpdef bint receiveCanMessage(self, long index, object data) except -1
     @cython.locals(controller=CanController)
     cpdef sendCanMessage(self, long index, long long at_us=*)

@@ -30,14 +30,14 @@ from humanoid_twin.protocol.canframes import (
     ACTUATION_IDS,
     SENSOR_IDS,
     SFLAGS_WATCHDOG,
+    ActuationFields,
     PayloadError,
     pack_sensors1_fields,
     pack_sensors2_fields,
-    parse_control_byte,
     slave_filters,
     status_byte,
-    unpack_actuation1,
-    unpack_actuation2,
+    unpack_actuation1_into,
+    unpack_actuation2_into,
 )
 from humanoid_twin.protocol.wire import ErrorState, node_name
 from humanoid_twin.slave.database import Global
@@ -72,6 +72,7 @@ class SlaveCan:
         "_rx_index",
         "_rx_id1",
         "_rx_id2",
+        "_rx_fields",
         "_tx_msgs",
         "_isr_send_cb",
         "_tx_index",
@@ -103,6 +104,8 @@ class SlaveCan:
         # rx_ids), and the same two as lowISR's destination and operation check
         self._rx_index = {ACTUATION_IDS[address][i]: i for i in (0, 1)}
         self._rx_id1, self._rx_id2 = ACTUATION_IDS[address]
+        # the last actuation packet's fields (RXBn as the PIC copied it out), reused per packet
+        self._rx_fields = ActuationFields()
         # the sensor packets' messages (TXB0/TXB1), built once and reloaded for each answer
         self._tx_msgs: list[Frame | None] = [None, None]
         self._isr_send_cb = self._isr_send
@@ -196,11 +199,12 @@ class SlaveCan:
         """``receiveCanMessage`` (table 18): an actuation packet into the actuator database.
         Returns False (and counts it) for a malformed packet, which changes nothing."""
         act = self.db.actuators
+        f = self._rx_fields
         try:
             if index == 0:
-                refs, speeds, control, kd3 = unpack_actuation1(data)
+                unpack_actuation1_into(data, f)
             else:
-                ki, kp, kd1, kd2 = unpack_actuation2(data)
+                unpack_actuation2_into(data, f)
         except PayloadError:
             self.rx_errors += 1
             return False
@@ -210,11 +214,18 @@ class SlaveCan:
         c0, c1, c2 = act.control
         if index == 0:
             a0, a1, a2 = act.servo
-            a0.ref, a1.ref, a2.ref = refs
-            a0.speed, a1.speed, a2.speed = speeds
-            pwm, calib, types = parse_control_byte(control)
-            c0.type, c1.type, c2.type = types
-            c2.kd = kd3
+            a0.ref = f.ref1
+            a1.ref = f.ref2
+            a2.ref = f.ref3
+            a0.speed = f.speed1
+            a1.speed = f.speed2
+            a2.speed = f.speed3
+            c0.type = f.type1
+            c1.type = f.type2
+            c2.type = f.type3
+            c2.kd = f.kd3
+            pwm = f.pwm
+            calib = f.calib
             sys_ = act.sysStatus
             if not pwm and sys_.pwm and self.on_stop is not None:
                 sys_.pwm = False
@@ -230,10 +241,14 @@ class SlaveCan:
                     self.prepareSensorPackets()
             sys_.calib = calib
         else:
-            c0.ki, c1.ki, c2.ki = ki
-            c0.kp, c1.kp, c2.kp = kp
-            c0.kd = kd1
-            c1.kd = kd2
+            c0.ki = f.ki1
+            c1.ki = f.ki2
+            c2.ki = f.ki3
+            c0.kp = f.kp1
+            c1.kp = f.kp2
+            c2.kp = f.kp3
+            c0.kd = f.kd1
+            c1.kd = f.kd2
         return True
 
     def sendCanMessage(self, index: int, at_us: int = -1) -> None:
