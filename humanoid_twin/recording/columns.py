@@ -7,8 +7,8 @@ one table: the static series styles, the buffer layout (one block of buffer colu
 ``Column``), the per-tick row and the ``send_columns`` batches. Adding a series is adding one
 ``Column``; nothing else has to be kept in the same order.
 
-A :class:`ColumnGroup` reads several consecutive columns of the table in one call (a board's
-servos, a foot, the robot's balance): the recorder calls its ``read`` once per row for all of
+A :class:`ColumnGroup` reads several consecutive columns of the table in one call (the boards'
+servos and feet, the robot's balance): the recorder calls its ``read`` once per row for all of
 them, each of its columns' own ``read`` takes its slice of it. A group with a ``finish`` reads
 only raw values per row (a board's firmware values and true joint angles, the bus counters) and
 derives its columns from them in numpy, a chunk of rows at a time (the true servo angles and
@@ -124,6 +124,9 @@ class ColumnGroup:
     one per column); each column's own ``read`` calls it and takes its slice (for a reader of
     that one column alone).
 
+    ``ints``: how many of the first values ``read`` returns are always ``int`` (or ``bool``):
+    the recorder stores those as 64-bit integers (cheaper per row than a float from an int).
+
     With ``finish`` (a batch group), ``read(tick)`` returns ``raw_width`` raw values instead, and
     ``finish(t_us, raw, state)`` derives the columns' values from rows of them (numpy arrays:
     the rows' times and raw values), returning them ``(rows, width)`` and the state the next
@@ -131,16 +134,17 @@ class ColumnGroup:
     are computed a chunk at a time.
     """
 
-    __slots__ = ("read", "every", "columns", "width", "finish", "raw_width")
+    __slots__ = ("read", "every", "columns", "width", "finish", "raw_width", "ints")
 
     def __init__(self, read: Callable[[Tick], Sequence[float]], every: int = 1, *,
-                 finish: Finish | None = None, raw_width: int = 0) -> None:
+                 finish: Finish | None = None, raw_width: int = 0, ints: int = 0) -> None:
         self.read = read
         self.every = every
         self.columns: list[Column] = []
         self.width = 0
         self.finish = finish
         self.raw_width = raw_width
+        self.ints = ints
 
     def column(self, path: str, names: tuple[str, ...], unit: str, colors: tuple[RGB, ...] | None = None,
                sparse: bool = False) -> Column:
@@ -279,65 +283,106 @@ def _finite(x: float) -> float:
     return x if math.isfinite(x) else _NAN
 
 
-class _BoardRows:
-    """A board's every-sample columns as one batch group: per row, the firmware's raw values
-    (reference, trajectory, commanded, measured position and speed, current: each for the three
-    servos), the true joint angles (unsigned, as the truth has them) and the task time, then
-    the IMU's and the foot's values; at chunk time, the recorded layout, with the true angles in
-    the servo frame and their finite-difference speed."""
+class _Boards:
+    """The recorded boards' every-sample columns as one batch group (one read a row for all of
+    them): per row, each board's firmware values (reference, trajectory, commanded, measured
+    position and speed, current: each for its three servos; the task time), all integers, then
+    the boards' other values (the IMU's, the foot's: ``add``) and the true joint angles of every
+    board (unsigned, as the truth has them); at chunk time, the recorded layout, with the true
+    angles in the servo frame and their finite-difference speed."""
 
-    def __init__(self, scu: int, slave: Any) -> None:
+    FIRMWARE = 6 * N_SERVOS + 1          # a board's firmware values a row
+
+    def __init__(self) -> None:
         if N_SERVOS != 3:
             raise RuntimeError(f"the recorder reads a board's 3 servos unrolled, the hardware has {N_SERVOS}")
-        self.slave = slave
+        self.slaves: list[Any] = []
+        self.parts: list[tuple[Callable[[Tick], Sequence[float]], int, int]] = []   # (read, width, out)
+        self.joint_names: list[str] = []
+        self.signs: list[float] = []
+        self.width = 0
+        self.joints: Callable[[dict], Sequence[float]] = lambda d: ()    # set by seal()
+        self._layout: tuple | None = None
+        self._out: list[tuple[int, int]] = []      # each board's first output column and its task's
+
+    def add_board(self, scu: int, slave: Any) -> None:
+        """Board ``scu``'s servos and task time (its columns: the servos' position, velocity and
+        current, then the task time's two)."""
         joints = SERVO_JOINTS[scu]
-        self.joints = itemgetter(*joints)
-        self.signs = np.array([SERVO_SIGN[j] for j in joints], dtype=np.float64)
-        self.parts: list[Callable[[Tick], Sequence[float]]] = []   # the IMU's, the foot's
-        n = N_SERVOS
-        # raw: ref, traj, commanded, pos, vel, current (n each), joints (n), task_us, parts ...
-        self.true_src = 6 * n
-        self.task_src = 7 * n
-        # out, per servo: position (ref traj commanded pos true), velocity (measured true), current
+        self.joint_names += joints
+        self.signs += [SERVO_SIGN[j] for j in joints]
+        self.slaves.append(slave)
         per = len(POSITION_SERIES) + 3
-        src, dst = [], []
-        for i in range(n):
-            o = i * per
-            src += [i, n + i, 2 * n + i, 3 * n + i, 4 * n + i, 5 * n + i]
-            dst += [o, o + 1, o + 2, o + 3, o + 5, o + 7]
-        self.true_dst = [i * per + 4 for i in range(n)]
-        self.speed_dst = [i * per + 6 for i in range(n)]
-        self.task_dst = n * per
-        self.direct_src, self.direct_dst = src, dst
-        self.raw_width = 7 * n + 1
-        self.width = n * per + 2
+        self._out.append((self.width, self.width + N_SERVOS * per))
+        self.width += N_SERVOS * per + 2
+        self._layout = None
 
     def add(self, part: Callable[[Tick], Sequence[float]], width: int) -> None:
-        """Values read per row after the servos', recorded as read."""
-        self.parts.append(part)
-        self.direct_src = [*self.direct_src, *range(self.raw_width, self.raw_width + width)]
-        self.direct_dst = [*self.direct_dst, *range(self.width, self.width + width)]
-        self.raw_width += width
+        """Values read per row after the firmware's, recorded as read (the last board's columns)."""
+        self.parts.append((part, width, self.width))
         self.width += width
+        self._layout = None
 
-    def read(self, t: Tick) -> Sequence[float]:
-        slave = self.slave
-        a0, a1, a2 = slave.actuators.servo          # the board's three servos, unrolled
-        s0, s1, s2 = slave.sensors.servo
-        row = [a0.ref, a1.ref, a2.ref, *slave.traj.position, *slave.commanded,
-               s0.pos, s1.pos, s2.pos, s0.vel, s1.vel, s2.vel, s0.current, s1.current, s2.current,
-               *self.joints(t.truth.joint_angles_deg), slave.task_us]
-        for part in self.parts:
+    @property
+    def ints(self) -> int:
+        """The integer raw values a row (first): the boards' firmware values."""
+        return self.FIRMWARE * len(self.slaves)
+
+    @property
+    def raw_width(self) -> int:
+        """Raw values a row: the firmware's, the parts', the joints'."""
+        return self.ints + sum(w for _, w, _ in self.parts) + len(self.joint_names)
+
+    def read(self, t: Tick) -> list[float]:
+        row: list[float] = []
+        for slave in self.slaves:
+            a0, a1, a2 = slave.actuators.servo          # the board's three servos, unrolled
+            s0, s1, s2 = slave.sensors.servo
+            row += (a0.ref, a1.ref, a2.ref, *slave.traj.position, *slave.commanded,
+                    s0.pos, s1.pos, s2.pos, s0.vel, s1.vel, s2.vel, s0.current, s1.current, s2.current,
+                    slave.task_us)
+        for part, _, _ in self.parts:
             row += part(t)
+        row += self.joints(t.truth.joint_angles_deg)
         return row
 
+    def _index(self) -> tuple:
+        """raw -> out: the columns copied as read; the true angles' (servo frame) and their
+        speeds'; the task times' (raw us -> ms)."""
+        if self._layout is None:
+            n = N_SERVOS
+            per = len(POSITION_SERIES) + 3
+            src: list[int] = []
+            dst: list[int] = []
+            true_dst: list[int] = []
+            task_src: list[int] = []
+            task_dst: list[int] = []
+            for b, (o, task) in enumerate(self._out):
+                r = b * self.FIRMWARE
+                for i in range(n):       # raw: ref, traj, commanded, pos, vel, current (n each)
+                    s = o + i * per      # out: position (ref traj commanded pos true), velocity
+                    src += [r + i, r + n + i, r + 2 * n + i, r + 3 * n + i, r + 4 * n + i, r + 5 * n + i]
+                    dst += [s, s + 1, s + 2, s + 3, s + 5, s + 7]    # (measured true), current
+                    true_dst.append(s + 4)
+                task_src.append(r + 6 * n)
+                task_dst.append(task)
+            r = self.ints
+            for _, width, out in self.parts:
+                src += range(r, r + width)
+                dst += range(out, out + width)
+                r += width
+            true_dst_a = np.array(true_dst)
+            self._layout = (np.array(src), np.array(dst), r, np.array(self.signs), true_dst_a, true_dst_a + 2,
+                            np.array(task_src), np.array(task_dst))
+        return self._layout
+
     def finish(self, t: np.ndarray, raw: np.ndarray, state: Any) -> tuple[np.ndarray, Any]:
+        src, dst, joints, signs, true_dst, speed_dst, task_src, task_dst = self._index()
         n = len(t)
         out = np.empty((n, self.width))
-        out[:, self.direct_dst] = raw[:, self.direct_src]
-        k = self.true_src
-        true = raw[:, k:k + N_SERVOS] * self.signs             # the servo frame
-        out[:, self.true_dst] = true
+        out[:, dst] = raw[:, src]
+        true = raw[:, joints:] * signs          # the servo frame
+        out[:, true_dst] = true
         # the speed: (true - true before) * PWM period / dt, 0 at the first sample
         t0, before = (t[0], true[0]) if state is None else state
         dt = np.diff(t, prepend=t0)
@@ -346,17 +391,24 @@ class _BoardRows:
         speed = (true - np.vstack([before, true[:-1]])) * per_tick[:, None]
         if state is None:
             speed[0] = 0.0
-        out[:, self.speed_dst] = speed
-        out[:, self.task_dst] = raw[:, self.task_src] / 1000.0     # the last pass's time, ms
-        out[:, self.task_dst + 1] = PWM_PERIOD_US / 1000.0         # its budget
+        out[:, speed_dst] = speed
+        out[:, task_dst] = raw[:, task_src] / 1000.0      # the last pass's time, ms
+        out[:, task_dst + 1] = PWM_PERIOD_US / 1000.0     # its budget
         return out, (t[-1], true[-1].copy())
 
+    def seal(self, truth: Any) -> None:
+        """The joints' reader, once every board is added, keyed by the names of ``truth``'s own
+        joint table (the same keys, found by identity)."""
+        keys = {k: k for k in truth.joint_angles_deg}
+        self.joints = itemgetter(*[keys.get(j, j) for j in self.joint_names])
 
-def _board_columns(scu: int, slave: Any) -> list[Column]:
-    """The columns of board ``scu``."""
+
+def _board_columns(scu: int, slave: Any, rows: _Boards, group: ColumnGroup) -> list[Column]:
+    """The columns of board ``scu``, its every-sample ones added to the boards' batch group
+    ``group`` (of ``rows``)."""
     base = scu_path(scu)
-    rows = _BoardRows(scu, slave)
-    group = ColumnGroup(rows.read, finish=rows.finish, raw_width=rows.raw_width)
+    rows.add_board(scu, slave)
+    first = len(group.columns)
     for i in range(N_SERVOS):
         sp = servo_path(scu, i)
         group.column(f"{sp}/position", POSITION_SERIES, "deg (servo frame)", POSITION_COLOURS)
@@ -368,13 +420,13 @@ def _board_columns(scu: int, slave: Any) -> list[Column]:
         st = slave.sensors.sysStatus
         return (st.pwm, st.calib, slave.deadline_violations)
 
-    counters = ColumnGroup(flags, every=COUNTER_EVERY)
+    counters = ColumnGroup(flags, every=COUNTER_EVERY, ints=3)
     counters.column(f"{base}/status", ("pwm", "calibrated"), "flag", (BLUE, PURPLE))
     counters.column(f"{base}/deadline_violations", ("deadline violations",), "count", (RED,))
     # the last pass's time at the board's clock (the PIC18 cycle table) against its 20 ms
     # (one group with the servos: read in the same row, their columns follow in the buffer)
     task = group.column(f"{base}/task_ms", ("task time", "budget"), "ms", (BLUE, RED))
-    cols = [*group.columns[:-1], *counters.columns, task]
+    cols = [*group.columns[first:-1], *counters.columns, task]
     if scu == IMU_SCU:
         cols += _imu_columns(base, slave, group, rows)
     foot = FOOT_OF_SCU.get(scu)
@@ -400,11 +452,10 @@ def _board_columns(scu: int, slave: Any) -> list[Column]:
     for axis in ("x", "y"):
         group.column(f"{base}/cop/{axis}/firmware", ("firmware",), "mm", (ORANGE,), True)
         group.column(f"{base}/cop/{axis}/truth", ("truth",), "mm", (GREEN,), True)
-    group.raw_width = rows.raw_width
     return cols + group.columns[first:]
 
 
-def _imu_columns(base: str, slave: Any, group: ColumnGroup, rows: _BoardRows) -> list[Column]:
+def _imu_columns(base: str, slave: Any, group: ColumnGroup, rows: _Boards) -> list[Column]:
     """The body board's inclinometer and gyroscope (its sensor database, decoded) beside the
     trunk's true attitude and rates (docs/firmware.md, "Trunk inertial sensors"): read with the
     board's servos (``group``)."""
@@ -414,7 +465,6 @@ def _imu_columns(base: str, slave: Any, group: ColumnGroup, rows: _BoardRows) ->
         return (m[0], true[0], m[1], true[1], m[2], true[2], m[3], true[3])
 
     rows.add(imu, 8)
-    group.raw_width = rows.raw_width
     first = len(group.columns)
     for what, unit in (("roll", "deg"), ("pitch", "deg"), ("roll_rate", "deg/s"), ("pitch_rate", "deg/s")):
         sensor = "gyroscope" if what.endswith("rate") else "inclinometer"
@@ -476,9 +526,10 @@ def _bus_columns(twin: Any) -> list[Column]:
     ctl = twin.master.controller
     link = twin.link
     bus = _BusRates(twin)
-    rates = ColumnGroup(bus.read, finish=bus.finish, raw_width=bus.raw_width)
+    rates = ColumnGroup(bus.read, finish=bus.finish, raw_width=bus.raw_width, ints=bus.raw_width)
     counters = ColumnGroup(lambda t: (net.error_frames, net.frames_dropped, ctl.error_state_code, ctl.tec,
-                                      ctl.rec, link.bytes_to_device, link.bytes_to_host), every=COUNTER_EVERY)
+                                      ctl.rec, link.bytes_to_device, link.bytes_to_host), every=COUNTER_EVERY,
+                           ints=7)
     return [
         Column(f"{CAN}/frames", ("frames",), "count", lambda t: (net.frames_sent,), every=COUNTER_EVERY),
         rates.column(f"{CAN}/frames_per_s", ("frames/s",), "1/s", (NEUTRAL,)),
@@ -525,8 +576,13 @@ def _master_columns(twin: Any, groups: list[tuple[str, list[str]]]) -> list[Colu
 def twin_columns(twin: Any, scus: Sequence[int]) -> list[Column]:
     """The recording's column table for ``twin`` (boards ``scus``), in recording order."""
     cols: list[Column] = []
+    rows = _Boards()
+    boards = ColumnGroup(rows.read, finish=rows.finish)
     for scu in scus:
-        cols += _board_columns(scu, twin.slaves[scu])
+        cols += _board_columns(scu, twin.slaves[scu], rows, boards)
+    rows.seal(twin.plant.truth())
+    boards.raw_width = rows.raw_width
+    boards.ints = rows.ints
     cols += _robot_columns()
     cols += _bus_columns(twin)
     cols += _master_columns(twin, master_groups(twin))

@@ -84,6 +84,7 @@ _MAX_CHUNK_ROWS = 10_000
 DEFAULT_CHUNK_S = 30.0
 # Height (m) of the CoP point and support polygon above the platform surface, so they show.
 _ON_FLOOR_M = 0.001
+_NO_COP = (math.nan, math.nan)        # a row's CoP while airborne (no point drawn)
 # Recordings up to this many simulated seconds keep rerun's footer index in memory to the end and
 # get their footer written by rerun at close (the index grows ~0.04 MB per simulated second with
 # 10 s chunks, less with the default 30 s ones: a few MB at most); longer (or open-ended) ones
@@ -261,11 +262,13 @@ class Recorder:
         # the buffer, in the same order, by reader: a group read once a row for all its columns
         # (recording/columns.py); a batch group's raw values there, its columns derived from
         # them at chunk time (``_batch``); the other values as recorded (``_plain_*``: where)
-        # (read, batch group or None, every, buffer column, buffer width) per reader
-        self._readers: list[tuple[Any, ColumnGroup | None, int, int, int]] = []
+        # (read, batch group or None, every, buffer column, buffer width, integers first) per
+        # reader; a group's integers (``ColumnGroup.ints``) are stored as int64 (``_int_cols``)
+        self._readers: list[tuple[Any, ColumnGroup | None, int, int, int, int]] = []
         self._batch: list[tuple[ColumnGroup, int, int]] = []     # (group, buffer column, values column)
         src: list[int] = []
         dst: list[int] = []
+        ints: list[int] = []
         b = k = 0
         order = self._buffer_order
         while k < len(order):
@@ -280,10 +283,15 @@ class Recorder:
                 src += range(b, b + width)
                 dst += range(f0, f0 + width)
                 bw = width
-            self._readers.append((read, batch, order[k].every, b, bw))
+            n_int = 0 if group is None else group.ints
+            if not 0 <= n_int <= bw:
+                raise ValueError(f"column {order[k].path!r}: its group's ints ({n_int}) must be 0..{bw}")
+            ints += range(b, b + n_int)
+            self._readers.append((read, batch, order[k].every, b, bw, n_int))
             b += bw
             k += m
         self._nbuf = b
+        self._int_cols = np.array(ints, dtype=np.intp)
         self._plain_src = np.array(src, dtype=np.intp)
         self._plain_dst = np.array(dst, dtype=np.intp)
         self._batch_state: dict[ColumnGroup, Any] = {}
@@ -300,8 +308,12 @@ class Recorder:
             raise RecorderError(str(exc)) from None
         names, _, _ = plant.body_poses()
         self._body_names: tuple[str, ...] = tuple(names)
-        # copied into the buffer at each sample, after truth() has synced the plant
+        # copied into the buffer at each sample, after truth() has synced the plant (as flat
+        # memoryviews: a row's copy is a slice assignment)
         self._poses = plant.body_pose_views()
+        if not all(v.dtype == np.float64 and v.flags.c_contiguous for v in self._poses):
+            raise RecorderError("the plant's body pose views are not contiguous float64: cannot record them")
+        self._pose_src = tuple(memoryview(v).cast("B").cast("d") for v in self._poses)
         self._platform = self._body_names.index("platform") if "platform" in self._body_names else None
         self._tick: Tick | None = None
 
@@ -324,29 +336,35 @@ class Recorder:
         runs: list[tuple[list, struct.Struct, int, int]] = []
         start = end = -1
         readers: list[tuple[Any, ColumnGroup | None]] = []
-        for read, batch, every, at, width in self._readers:
+        fmt = ""
+        for read, batch, every, at, width, n_int in self._readers:
             if every not in due:
                 continue
             if at != end:           # not contiguous with the run before: a new run
                 if readers:
-                    runs.append((readers, struct.Struct(f"={end - start}d"), start * _F64, end - start))
-                readers, start = [], at
+                    runs.append((readers, _packer(fmt, end - start), start * _F64, end - start))
+                readers, start, fmt = [], at, ""
             readers.append((read, batch))
+            fmt += f"{n_int}q{width - n_int}d"
             end = at + width
         if readers:
-            runs.append((readers, struct.Struct(f"={end - start}d"), start * _F64, end - start))
+            runs.append((readers, _packer(fmt, end - start), start * _F64, end - start))
         return runs
 
     def _alloc(self) -> None:
         rows, nb = self._rows, len(self._body_names)
         self._t = np.zeros(rows, dtype=np.int64)
-        self._k = np.zeros(rows, dtype=np.int64)       # the sample's number (for Column.every)
+        self._t_items = memoryview(self._t)
+        self._k0 = 0          # the sample number of the buffer's first row (then one more a row)
         self._buf = np.zeros((rows, self._nbuf), dtype=np.float64)
         self._buf_bytes = memoryview(self._buf).cast("B")        # the rows, packed in place
         self._pos = np.zeros((rows, nb, 3), dtype=np.float64)
         self._quat = np.zeros((rows, nb, 4), dtype=np.float64)  # MuJoCo's order (w, x, y, z)
-        self._com = np.zeros((rows, 3), dtype=np.float64)
-        self._cop3 = np.full((rows, 2), np.nan)
+        # flat views of them, one row a slice
+        self._pose_dst = tuple(memoryview(a).cast("B").cast("d") for a in (self._pos, self._quat))
+        self._pose_len = (nb * 3, nb * 4)
+        self._com: list[Sequence[float]] = [()] * rows      # each row's CoM (x y z)
+        self._cop: list[Sequence[float] | None] = [None] * rows    # its CoP (x y), None airborne
         self._poly: list[Sequence[Sequence[float]]] = [()] * rows      # each row's hull points
 
     # -- static content ------------------------------------------------------------------------------
@@ -354,11 +372,15 @@ class Recorder:
         rec = self.rec
         log_static(rec, self.twin.plant, self._body_names, self._feet)
         log_keys(rec)
+        styles: dict[tuple, rr.SeriesLines] = {}     # one archetype per style (many columns share one)
         for c in self.columns:
-            kw: dict[str, Any] = {"names": list(c.names)}
-            if c.colors is not None:
-                kw["colors"] = list(c.colors)
-            rec.log(c.path, rr.SeriesLines(**kw), static=True)
+            style = styles.get((c.names, c.colors))
+            if style is None:
+                kw: dict[str, Any] = {"names": list(c.names)}
+                if c.colors is not None:
+                    kw["colors"] = list(c.colors)
+                style = styles[(c.names, c.colors)] = rr.SeriesLines(**kw)
+            rec.log(c.path, style, static=True)
 
     # -- sampling ------------------------------------------------------------------------------------
     def sample(self) -> None:
@@ -366,14 +388,13 @@ class Recorder:
         table read once, plus the bodies' poses. A no-op once closed."""
         if self._closed:
             return
-        twin = self.twin
-        now = twin.clock.now_us
         w0 = time.perf_counter()
         i = self._n
-        self._t[i] = now
-        self._k[i] = self.samples
-        tick = self._tick = start_tick(twin, self._tick, self._signs)
         k = self.samples
+        if i == 0:
+            self._k0 = k
+        tick = self._tick = start_tick(self.twin, self._tick, self._signs)
+        self._t_items[i] = tick.now_us
         runs = self._row_readers.get(k % self._cycle)
         if runs is None:
             runs = self._runs_due(k)
@@ -389,16 +410,18 @@ class Recorder:
                 ext(v)
             if len(vals) != width:
                 raise RecorderError(f"recorder bug: sampled {len(vals)} values for {width} columns")
-            packer.pack_into(self._buf_bytes, row + offset, *vals)
+            try:
+                packer.pack_into(self._buf_bytes, row + offset, *vals)
+            except struct.error as exc:     # a value a group declared an int is not one
+                raise RecorderError(f"cannot record this row's values: {exc}") from None
 
         truth = tick.truth
-        pos, quat = self._poses
-        self._pos[i] = pos
-        self._quat[i] = quat
+        pos, quat = self._pose_dst
+        npos, nquat = self._pose_len
+        pos[i * npos:(i + 1) * npos], quat[i * nquat:(i + 1) * nquat] = self._pose_src
         self._com[i] = truth.com
         plain = truth.plain()
-        cw = plain.cop_world_xy
-        self._cop3[i] = math.nan if cw is None else cw
+        self._cop[i] = plain.cop_world_xy
         self._poly[i] = plain.support_polygon_xy
         self._n = i + 1
         self.samples += 1
@@ -448,25 +471,27 @@ class Recorder:
 
     def _send(self, n: int) -> None:
         rec = self.rec
-        idx = [rr.TimeColumn(TIMELINE, duration=self._t[:n].astype("timedelta64[us]"))]
+        t = self._t[:n]
+        idx = [rr.TimeColumn(TIMELINE, duration=t.astype("timedelta64[us]"))]
         vals = self._values(n)
         # Scalars and transforms go as ready arrow arrays (``rr.ComponentColumn`` over the
         # archetype's own descriptor): the same data as ``rr.Scalars.columns(...)`` /
-        # ``rr.Transform3D.columns(...)``, at a third of their Python cost per call.
-        subsets: dict[int, tuple[list, np.ndarray, int]] = {1: (idx, vals, n)}
+        # ``rr.Transform3D.columns(...)``, at a third of their Python cost per call. A column's
+        # rows are contiguous in ``vals``: one series is given to arrow as it is (no copy).
+        subsets: dict[int, tuple[list, slice, int]] = {1: (idx, slice(None), n)}
         for s in self.columns:
             c0 = self._col[s.path]
             sub = subsets.get(s.every)
             if sub is None:       # the rows of a column written every k-th sample
-                keep = self._k[:n] % s.every == 0
+                rows = self._rows_every(s.every, n)
                 sub = subsets[s.every] = (
-                    [rr.TimeColumn(TIMELINE, duration=self._t[:n][keep].astype("timedelta64[us]"))],
-                    vals[keep], int(keep.sum()))
-            idx_s, vals_s, m = sub
+                    [rr.TimeColumn(TIMELINE, duration=t[rows].astype("timedelta64[us]"))], rows,
+                    len(range(n)[rows]))
+            idx_s, rows, m = sub
             if m == 0:
                 continue
             if s.width == 1:
-                col = vals_s[:, c0]
+                col = np.ascontiguousarray(vals[c0, rows])
                 if s.sparse:
                     ok = ~np.isnan(col)
                     if not ok.all():  # rows without a value: empty rows, a gap in the plot
@@ -476,37 +501,45 @@ class Recorder:
                             rr.ComponentColumn(_D_SCALARS, _Arrow(pa.array(col[ok])), offsets=offsets)])
                         continue
                 data = pa.array(col)
-            else:
-                data = pa.array(vals_s[:, c0:c0 + s.width].ravel())
+            else:             # row by row: the row's values side by side
+                data = pa.array(vals[c0:c0 + s.width, rows].T.ravel())
             rec.send_columns(s.path, indexes=idx_s, columns=[
                 rr.ComponentColumn(_D_SCALARS, _Arrow(data), offsets=_offsets(m, s.width))])
         unit = _offsets(n, 1)
         quat = self._quat[:n][:, :, WXYZ_TO_XYZW]
+        # by body, each body's rows contiguous, as rerun's float32
+        pos32 = np.ascontiguousarray(self._pos[:n].transpose(1, 0, 2), dtype=np.float32)
+        quat32 = np.ascontiguousarray(quat.transpose(1, 0, 2), dtype=np.float32)
         for b, name in enumerate(self._body_names):
             rec.send_columns(f"{BODIES}/{name}", indexes=idx, columns=[
-                rr.ComponentColumn(_D_TRANSLATION, _Arrow(_vec_array(self._pos[:n, b], _VEC3)), offsets=unit),
-                rr.ComponentColumn(_D_QUATERNION, _Arrow(_vec_array(quat[:, b], _VEC4)), offsets=unit),
+                rr.ComponentColumn(_D_TRANSLATION, _Arrow(_vec_array(pos32[b], _VEC3)), offsets=unit),
+                rr.ComponentColumn(_D_QUATERNION, _Arrow(_vec_array(quat32[b], _VEC4)), offsets=unit),
             ])
         self._send_feet(idx, vals)
         self._send_world(idx, n, quat)
 
+    def _rows_every(self, every: int, n: int) -> slice:
+        """The rows of the ``n`` buffered ones whose sample number ``every`` divides."""
+        return slice((-self._k0) % every, n, every)
+
     def _values(self, n: int) -> np.ndarray:
-        """The recorded values of the ``n`` buffered rows, ``(n, columns)``: the buffer's, and the
-        batch groups' columns derived from their raw values (recording/columns.py), for the rows
-        each is written on."""
+        """The recorded values of the ``n`` buffered rows, ``(columns, n)`` (a column's rows
+        contiguous): the buffer's, and the batch groups' columns derived from their raw values
+        (recording/columns.py), for the rows each is written on."""
         t = self._t[:n]
         buf = self._buf[:n]
-        vals = np.empty((n, self._ncols))
-        vals[:, self._plain_dst] = buf[:, self._plain_src]
+        if len(self._int_cols):       # the integers' columns hold int64s: as float64
+            buf = buf.copy()
+            buf[:, self._int_cols] = self._buf[:n].view(np.int64)[:, self._int_cols]
+        vals = np.empty((self._ncols, n))
+        vals[self._plain_dst] = buf[:, self._plain_src].T
         for group, b0, f0 in self._batch:
-            rows: slice | np.ndarray = slice(None)
-            if group.every != 1:          # only the rows the group is written on
-                rows = self._k[:n] % group.every == 0
-                if not rows.any():
-                    continue
+            rows = slice(None) if group.every == 1 else self._rows_every(group.every, n)
+            if not len(range(n)[rows]):
+                continue
             raw = buf[rows, b0:b0 + group.raw_width]
             out, state = group.finish(t[rows], raw, self._batch_state.get(group))
-            vals[rows, f0:f0 + group.width] = out
+            vals[f0:f0 + group.width, rows] = out.T
             self._batch_state[group] = state
         return vals
 
@@ -517,8 +550,8 @@ class Recorder:
             base = scu_path(scu)
             v = foot_view_path(scu)
             for who in ("firmware", "truth"):
-                x = vals[:, col[f"{base}/cop/x/{who}"]]
-                y = vals[:, col[f"{base}/cop/y/{who}"]]
+                x = vals[col[f"{base}/cop/x/{who}"]]
+                y = vals[col[f"{base}/cop/y/{who}"]]
                 ok = ~(np.isnan(x) | np.isnan(y))
                 offsets = np.zeros(len(ok) + 1, dtype=np.int32)
                 np.cumsum(ok, out=offsets[1:])
@@ -526,7 +559,7 @@ class Recorder:
                 rec.send_columns(f"{v}/cop/{who}", indexes=idx, columns=[
                     rr.ComponentColumn(_D_POSITIONS2D, _Arrow(_vec_array(pts, _VEC2)), offsets=offsets)])
             k0 = col[f"{base}/force/newton"]
-            forces = vals[:, k0:k0 + N_SPECIAL_SENSORS]
+            forces = vals[k0:k0 + N_SPECIAL_SENSORS].T
             radii = np.clip(_LOAD_RADIUS_BASE_MM + _LOAD_RADIUS_MM_PER_N * forces, 0.0, _LOAD_RADIUS_MAX_MM)
             rec.send_columns(f"{v}/loads", indexes=idx, columns=[rr.ComponentColumn(
                 _D_RADII2D, _Arrow(pa.array(radii.astype(np.float32).ravel())),
@@ -535,10 +568,10 @@ class Recorder:
     def _send_world(self, idx: list, n: int, quat: np.ndarray) -> None:
         rec = self.rec
         unit = _offsets(n, 1)
-        com = self._com[:n]
+        com = np.array(self._com[:n], dtype=np.float64).reshape(n, 3)
         ground = com.copy()
         ground[:, 2] = self._platform_z(np.arange(n), com[:, :2], quat)
-        cop = self._cop3[:n]
+        cop = np.array([_NO_COP if c is None else c for c in self._cop[:n]], dtype=np.float64).reshape(n, 2)
         ok = ~np.isnan(cop[:, 0])
         cop_offsets = np.zeros(n + 1, dtype=np.int32)
         np.cumsum(ok, out=cop_offsets[1:])
@@ -744,6 +777,15 @@ def _vec_array(x: np.ndarray, arrow_type: pa.DataType) -> pa.Array:
 
 _OFFSETS: dict[tuple[int, int], np.ndarray] = {}
 _F64 = 8              # bytes of a float64 (the buffer's rows are packed with struct)
+
+
+def _packer(fmt: str, width: int) -> struct.Struct:
+    """The packer of a run of ``width`` values of struct format ``fmt`` (``q`` and ``d`` items,
+    native: 8 bytes each, no padding)."""
+    p = struct.Struct(fmt)
+    if p.size != width * _F64:
+        raise RecorderError(f"recorder bug: format {fmt!r} packs {p.size} bytes for {width} values")
+    return p
 
 
 def _offsets(n: int, width: int) -> np.ndarray:
