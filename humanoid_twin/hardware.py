@@ -13,8 +13,12 @@ import math
 from collections.abc import Sequence
 from math import pi as _pi
 
-_RAD_PER_DEG = _pi / 180.0      # what math.radians multiplies by
-_DEG_PER_RAD = 180.0 / _pi      # what math.degrees multiplies by
+# The unit conversions of angles, the products math.radians and math.degrees compute (the same
+# doubles on both cores: the compiled modules use these values as C constants)
+RAD_PER_DEG = _pi / 180.0
+DEG_PER_RAD = 180.0 / _pi
+_RAD_PER_DEG = RAD_PER_DEG
+_DEG_PER_RAD = DEG_PER_RAD
 
 # --- boards (addresses 1..8 and their range check: protocol/wire.py) -------------------------
 SCU_NAMES: dict[int, str] = {
@@ -69,7 +73,11 @@ def tilt_from_roll_pitch(roll_deg: float, pitch_deg: float) -> float:
 
     Compiled (hardware.pxd) with C's libm, the functions Python's math calls: ``math.radians``
     and ``math.degrees`` are written as the products they are, the clamp to [-1, 1] as
-    ``max(-1.0, min(1.0, c))`` does it; the same number on both cores."""
+    ``max(-1.0, min(1.0, c))`` does it; the same number on both cores. An infinite angle is a
+    ``ValueError`` on both (Python's ``math.cos`` refuses it; C's would give NaN)."""
+    if math.isinf(roll_deg) or math.isinf(pitch_deg):
+        raise ValueError(f"tilt_from_roll_pitch: the angles must not be infinite, got {roll_deg!r}, "
+                         f"{pitch_deg!r}")
     c = math.cos(roll_deg * _RAD_PER_DEG) * math.cos(pitch_deg * _RAD_PER_DEG)
     c = c if c < 1.0 else 1.0
     c = c if c > -1.0 else -1.0

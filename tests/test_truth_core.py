@@ -17,10 +17,10 @@ import numpy as np
 import pytest
 
 from humanoid_twin.core import core_kind, is_compiled
+from humanoid_twin.hardware import DEG_PER_RAD, RAD_PER_DEG
 from humanoid_twin.plant import constants as C  # noqa: N812
 from humanoid_twin.plant import contacts, geometry
-from humanoid_twin.plant.contacts import RAD_PER_DEG, convex_hull_xy, signed_distance_xy
-from humanoid_twin.plant.sensors import DEG_PER_RAD
+from humanoid_twin.plant.contacts import convex_hull_xy, signed_distance_xy
 
 SOURCE = Path(contacts.__file__).with_name("contacts.py")
 
@@ -328,7 +328,8 @@ def test_the_per_contact_force_path_gives_the_same_truth():
     def figures(pr: TruthProbe):
         t = pr.compute(p.t_us, 0.0)
         cops = [pr.foot_cop_mm(f).tolist() for f in range(2)]
-        assert [list(pr.foot_cop_xy(f)) for f in range(2)] == cops      # the float path, the same numbers
+        # the per-foot path (the monitor's, at each leg board's tick) gives the whole sample's numbers
+        assert [list(pr.foot_cop_xy(f)) for f in range(2)] == [list(c) for c in t.plain().foot_cop_mm]
         return _bits([t.trunk_tilt_deg, t.cop_margin_mm, t.total_normal_force_n, t.fell, list(t.plain()),
                       cops])
 
@@ -354,6 +355,10 @@ def test_the_imu_tilt_is_the_math_module_formula() -> None:
         assert tilt_from_roll_pitch(r, p) == ref, (r, p)
     assert tilt_from_roll_pitch(0.0, 0.0) == 0.0
     assert tilt_from_roll_pitch(1, 2) == tilt_from_roll_pitch(1.0, 2.0)
+    assert tilt_from_roll_pitch(math.nan, 0.0) == 0.0   # as the formula gives it (the clamp takes NaN to 1)
+    for bad in ((math.inf, 0.0), (0.0, -math.inf)):                 # C's cos would give NaN, then 0 deg
+        with pytest.raises(ValueError, match="infinite"):
+            tilt_from_roll_pitch(*bad)
 
 
 def test_the_hull_and_margin_refuse_arrays_too_short() -> None:

@@ -18,7 +18,8 @@ The figures are the same numbers on both cores: the same floating-point operatio
 order (tests/test_truth_core.py). The hull and the margin work on arrays here
 (``plant/geometry.py`` gives them on point lists); Python's
 ``math.hypot`` is called on both cores (its result can differ from C's ``hypot`` in the last
-bit); ``math.degrees`` and ``math.radians`` are their products by ``DEG_PER_RAD`` and ``RAD_PER_DEG``.
+bit); ``math.degrees`` and ``math.radians`` are their products by ``hardware.DEG_PER_RAD`` and
+``hardware.RAD_PER_DEG``.
 """
 
 from __future__ import annotations
@@ -27,15 +28,14 @@ import math
 from array import array
 from math import hypot as _hypot  # Python's own hypot on both cores (see above)
 from math import inf as _inf
-from math import pi as _pi
 from typing import Any
 
+from humanoid_twin.hardware import DEG_PER_RAD, RAD_PER_DEG
 from humanoid_twin.plant import constants as C  # noqa: N812
 
-__all__ = ["ContactScan", "TruthSample", "RAD_PER_DEG", "convex_hull_xy", "signed_distance_xy"]
+__all__ = ["ContactScan", "TruthSample", "convex_hull_xy", "signed_distance_xy"]
 
-RAD_PER_DEG = _pi / 180.0             # what math.radians multiplies by
-_DEG = 180.0 / _pi                    # what math.degrees multiplies by (sensors.DEG_PER_RAD)
+_DEG = DEG_PER_RAD                    # C doubles in the compiled core
 _RAD = RAD_PER_DEG
 _LOADED_MIN_N = C.LOADED_MIN_N
 _FELL_HEIGHT_M = C.FELL_HEIGHT_M

@@ -29,10 +29,10 @@ import numpy as np
 
 from humanoid_twin import hardware
 from humanoid_twin.clock import US_PER_S
+from humanoid_twin.hardware import DEG_PER_RAD as _DEG_PER_RAD
 from humanoid_twin.plant import constants as C  # noqa: N812
 from humanoid_twin.plant.drawing import WXYZ_TO_XYZW, Drawing, GeomInfo, ViewerWindow  # noqa: F401 (recorder)
 from humanoid_twin.plant.imu import TrunkImu
-from humanoid_twin.plant.sensors import DEG_PER_RAD as _DEG_PER_RAD
 from humanoid_twin.plant.sensors import BoardIO, PlantError, PlantInputError, SensorFrontEnd, _check_scu  # noqa: F401 (re-exported)
 from humanoid_twin.plant.truth import FOOT_BODIES, GroundTruth, TruthProbe
 from humanoid_twin.protocol.wire import N_SCU, POS_LIMIT_DEG

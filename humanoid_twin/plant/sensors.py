@@ -31,12 +31,10 @@ try:        # Cython's pure-Python mode: True in the compiled core (as in humano
 except ImportError:
     _COMPILED = False
 
-__all__ = ["BoardIO", "SensorFrontEnd", "DEG_PER_RAD", "COUNTS_PER_N", "round_half_even", "PlantError",
-           "PlantInputError"]
+__all__ = ["BoardIO", "SensorFrontEnd", "COUNTS_PER_N", "round_half_even", "PlantError", "PlantInputError"]
 
-DEG_PER_RAD = 180.0 / math.pi
 COUNTS_PER_N = 1.0 / hardware.FORCE_N_PER_COUNT
-_DEG = DEG_PER_RAD                  # the same values as C doubles in the compiled core
+_DEG = hardware.DEG_PER_RAD         # the same values as C doubles in the compiled core
 _COUNTS = COUNTS_PER_N
 _POT_COUNTS_PER_DEG = hardware.POT_COUNTS_PER_DEG
 _POT_ADC_MAX = hardware.POT_ADC_MAX

@@ -21,9 +21,9 @@ import numpy as np
 
 from humanoid_twin.clock import US_PER_S
 from humanoid_twin.core import is_compiled
+from humanoid_twin.hardware import DEG_PER_RAD as _DEG_PER_RAD
 from humanoid_twin.plant import contacts
 from humanoid_twin.plant.contacts import ContactScan, TruthSample
-from humanoid_twin.plant.sensors import DEG_PER_RAD as _DEG_PER_RAD
 
 FOOT_BODIES: tuple[str, str] = ("r_foot", "l_foot")
 
