@@ -266,6 +266,30 @@ def test_recorded_content_is_pinned(run):
     assert _content_digest(run[0]) == RECORDED_CONTENT_SHA256
 
 
+def test_the_content_does_not_depend_on_where_the_chunks_cut(tmp_path):
+    """The same 1 s run recorded in chunks of 7 rows (their first sample numbers not multiples
+    of the slow columns' 5: the rows those are written on found per chunk) and in one chunk
+    holds the same values, bitwise."""
+    digests = []
+    for chunk_s in (0.14, 30.0):
+        rrd = tmp_path / f"chunks{chunk_s}.rrd"
+        with Twin(seed=0) as twin, Recorder(rrd, twin, chunk_s=chunk_s) as rec:
+            twin.advance_to(1_000_000)
+        digests.append(_content_digest(rrd))
+        assert rec.chunks_sent == (8 if chunk_s < 1 else 1)     # 51 rows
+    assert digests[0] == digests[1]
+
+
+def test_a_user_column_may_give_its_names_and_colours_as_lists(tmp_path):
+    """Lists where the table has tuples (a user's column): recorded like the others."""
+    col = Column("user/listed", ["a", "b"], "u", lambda t: (1.0, 2.0), colors=[[255, 0, 0], [0, 255, 0]])
+    rrd = tmp_path / "listed.rrd"
+    with Twin(seed=0) as twin, Recorder(rrd, twin, columns=[col], chunk_s=0.3):
+        twin.advance_to(100_000)
+    t, v = read_rrd_scalars(rrd, "user/listed")
+    assert len(t) == 6 and v.tolist() == [[1.0, 2.0]] * 6
+
+
 def test_a_derived_column_read_alone_gives_its_recorded_last_row(run):
     """A column of a batch group read alone (its own ``read`` on the last sample's tick) gives
     what the recording holds for that row: the true angle and its speed, the task time, the

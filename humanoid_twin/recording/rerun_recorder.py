@@ -374,12 +374,18 @@ class Recorder:
         log_keys(rec)
         styles: dict[tuple, rr.SeriesLines] = {}     # one archetype per style (many columns share one)
         for c in self.columns:
-            style = styles.get((c.names, c.colors))
+            key: tuple | None = (c.names, c.colors)
+            try:
+                style = styles.get(key)
+            except TypeError:       # a user's column given lists (unhashable): an archetype of its own
+                key = style = None
             if style is None:
                 kw: dict[str, Any] = {"names": list(c.names)}
                 if c.colors is not None:
                     kw["colors"] = list(c.colors)
-                style = styles[(c.names, c.colors)] = rr.SeriesLines(**kw)
+                style = rr.SeriesLines(**kw)
+                if key is not None:
+                    styles[key] = style
             rec.log(c.path, style, static=True)
 
     # -- sampling ------------------------------------------------------------------------------------
