@@ -327,9 +327,9 @@ def test_the_per_contact_force_path_gives_the_same_truth():
 
     def figures(pr: TruthProbe):
         t = pr.compute(p.t_us, 0.0)
-        cops = [pr.foot_cop_mm(f).tolist() for f in range(2)]
+        cops = [list(pr.foot_cop_xy(f)) for f in range(2)]
         # the per-foot path (the monitor's, at each leg board's tick) gives the whole sample's numbers
-        assert [list(pr.foot_cop_xy(f)) for f in range(2)] == [list(c) for c in t.plain().foot_cop_mm]
+        assert cops == [list(c) for c in t.plain().foot_cop_mm]
         return _bits([t.trunk_tilt_deg, t.cop_margin_mm, t.total_normal_force_n, t.fell, list(t.plain()),
                       cops])
 

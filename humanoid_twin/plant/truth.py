@@ -262,8 +262,3 @@ class TruthProbe:
             return self._scan.foot_cop(con.geom.tolist(), adr.tolist(), con.pos.tolist(), force.tolist(),
                                        edges, f)
         return self._scan.foot_cop(con.geom, adr, con.pos, force, edges, f)
-
-    def foot_cop_mm(self, f: int) -> np.ndarray | None:
-        """The CoP of foot index ``f`` (``FOOT_BODIES`` order; foot frame, mm), None when unloaded."""
-        cop = self.foot_cop_xy(f)
-        return None if cop is None else np.array(cop)
