@@ -9,6 +9,7 @@ control-type labels, int8 conversions by hand and the force sensors' calibration
 from __future__ import annotations
 
 import ast
+import functools
 from pathlib import Path
 
 import pytest
@@ -16,12 +17,27 @@ import pytest
 PKG = Path(__file__).resolve().parents[1] / "humanoid_twin"
 
 
+def _segment(lines: list[str], node: ast.expr) -> str:
+    """``ast.get_source_segment`` on lines split once (it splits the whole file at each call:
+    quadratic over a module's constants)."""
+    if node.end_lineno is None or node.end_col_offset is None:
+        return ""
+    first, last = node.lineno - 1, node.end_lineno - 1
+    if first == last:
+        return lines[first].encode()[node.col_offset:node.end_col_offset].decode()
+    head = lines[first].encode()[node.col_offset:].decode()
+    tail = lines[last].encode()[:node.end_col_offset].decode()
+    return head + "".join(lines[first + 1:last]) + tail
+
+
+@functools.cache
 def _code_constants() -> list[tuple[str, int, ast.Constant, str, ast.AST | None]]:
     """(module, line, constant, its source text, its parent) for every int or str constant of the
-    package's code, docstrings left out."""
+    package's code, docstrings left out; scanned once, when a test first asks (not at collection)."""
     out = []
     for path in sorted(PKG.rglob("*.py")):
         src = path.read_text(encoding="utf-8")
+        lines = [line + "\n" for line in src.split("\n")]   # ast counts lines at "\n"
         tree = ast.parse(src)
         docs = set()
         parents: dict[int, ast.AST] = {}
@@ -35,16 +51,13 @@ def _code_constants() -> list[tuple[str, int, ast.Constant, str, ast.AST | None]
         rel = path.relative_to(PKG).as_posix()
         for node in ast.walk(tree):
             if isinstance(node, ast.Constant) and type(node.value) in (int, str) and id(node) not in docs:
-                text = ast.get_source_segment(src, node) or ""
+                text = _segment(lines, node)
                 out.append((rel, node.lineno, node, text, parents.get(id(node))))
     return out
 
 
-CONSTANTS = _code_constants()
-
-
 def _where(pred) -> list[str]:
-    return sorted({f"{mod}:{line} {text}" for mod, line, node, text, parent in CONSTANTS
+    return sorted({f"{mod}:{line} {text}" for mod, line, node, text, parent in _code_constants()
                    if pred(mod, node, text, parent)})
 
 
