@@ -45,6 +45,7 @@ class Twin:
         name: str | None = None,
         supervisor: SupervisorConfig | None = None,
         pic_mhz: float = DEFAULT_PIC_MHZ,
+        master: bool = True,
     ) -> None:
         self.seed = seed
         self.pic_mhz = pic_mhz          # the Slaves' clock (the Master's: DEFAULT_PIC_MHZ, docs/firmware.md)
@@ -53,7 +54,10 @@ class Twin:
         self.plant = Plant(model_path, seed=seed, clock=self.clock)
         self.network = CanNetwork(self.clock, interface=can_interface, channel=can_channel)
         self.link = SerialLink(self.clock)
-        self.master = Master(self.clock, self.network, self.link, supervisor)
+        # ``master=False``: no Master board on the wire; something else stands in for it (a CAN
+        # log's player: humanoid_twin/compare/, ``humanoid-twin compare``)
+        self.master: Master | None = (Master(self.clock, self.network, self.link, supervisor)
+                                      if master else None)
         # Slave PWM periods are not synchronised on the robot: each board starts its 20 ms
         # period at its own phase, drawn from the seed (docs/firmware.md).
         self.phases_us: dict[int, int] = dict(zip(SCUS, _phases(seed), strict=True))

@@ -185,6 +185,10 @@ def build_parser() -> argparse.ArgumentParser:
 
     add_sweep_parser(sub)   # its other options are run's (main passes them through)
 
+    from humanoid_twin.cli.compare import add_compare_parsers
+
+    add_compare_parsers(sub)    # compare, calibrate (cli/compare.py)
+
     view = sub.add_parser("view", help="open a recording in the rerun viewer",
                           description="Open FILE.rrd in the rerun viewer (same as `rerun FILE.rrd`).")
     view.add_argument("file", type=Path, help="the .rrd recording")
@@ -617,6 +621,18 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     return sweep_command(args, build_parser())
 
 
+def _cmd_compare(args: argparse.Namespace) -> int:
+    from humanoid_twin.cli.compare import cmd_compare
+
+    return cmd_compare(args)
+
+
+def _cmd_calibrate(args: argparse.Namespace) -> int:
+    from humanoid_twin.cli.compare import cmd_calibrate
+
+    return cmd_calibrate(args)
+
+
 def _warn_stale_core() -> None:
     """One line on stderr when, in a source tree, a compiled module is older than its source."""
     from humanoid_twin.core import PURE_PYTHON_ENV, stale_modules
@@ -643,7 +659,8 @@ def main(argv: list[str] | None = None) -> int:
             parser.error(f"unrecognized arguments: {' '.join(extra)}")
         args.run_args = extra
         _warn_stale_core()
-        handler = {"run": cmd_run, "serve": cmd_serve, "view": cmd_view, "sweep": cmd_sweep}[args.command]
+        handler = {"run": cmd_run, "serve": cmd_serve, "view": cmd_view, "sweep": cmd_sweep,
+                   "compare": _cmd_compare, "calibrate": _cmd_calibrate}[args.command]
         return handler(args)
     except Exception as exc:
         # a signal that landed in an extension module's import comes out wrapped (ImportError)

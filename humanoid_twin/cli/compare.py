@@ -1,0 +1,167 @@
+"""``humanoid-twin compare LOG`` and ``humanoid-twin calibrate LOG...`` (docs/calibration.md).
+
+    humanoid-twin compare LOG [--seed N] [--support floor|stand] [--out F.rrd] [--json]
+    humanoid-twin calibrate LOG [LOG ...] --fit NAMES [--tie NAMES] [--validate LOG ...]
+                            --out FILE.toml [--report FILE.html|.rrd] [--jobs N]
+                            [--backend local|ray] [--json]
+
+Both check their inputs first (one line, exit 2: a file that is not a CAN log, a log with no
+Master frame or none of the robot's frames, an unknown parameter, an unwritable output) and
+write their outputs under temporary names renamed at the end: a failed run replaces nothing.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+from typing import Any
+
+from humanoid_twin.cli.options import usage_error
+
+__all__ = ["add_compare_parsers", "cmd_compare", "cmd_calibrate"]
+
+
+def add_compare_parsers(sub: Any) -> None:
+    """The ``compare`` and ``calibrate`` subcommands (registered by cli/main.py)."""
+    from humanoid_twin.compare.core import SUPPORTS
+
+    cmp = sub.add_parser(
+        "compare", help="drive the twin with a robot's CAN log and compare their sensor frames",
+        description="The log's Master frames drive the twin's eight Slaves at their logged instants; "
+        "each Sensors frame is compared with the log's frame of the same SCU, packet and round "
+        "(docs/calibration.md).")
+    cmp.add_argument("log", type=Path, help="a CAN log python-can reads (.blf .asc .log .csv .trc ...)")
+    _twin_options(cmp, SUPPORTS)
+    cmp.add_argument("--out", type=Path,
+                     help="a rerun recording (.rrd): the twin's and the log's signals overlaid")
+    cmp.add_argument("--json", action="store_true", help="print one JSON object on stdout")
+
+    cal = sub.add_parser(
+        "calibrate", help="fit the twin's parameters to robot CAN logs (bounded least squares)",
+        description="Fit the named parameters so that the twin's Sensors frames match the logs' "
+        "(each signal divided by its quantum); write the result as a params file (docs/calibration.md).")
+    cal.add_argument("logs", type=Path, nargs="+", metavar="LOG", help="training CAN logs")
+    cal.add_argument("--fit", required=True,
+                     help="comma-separated parameter names or globs (each match fitted)")
+    cal.add_argument("--tie", default="", help="comma-separated names or globs fitted as one shared value")
+    cal.add_argument("--validate", type=Path, nargs="+", default=[], metavar="LOG",
+                     help="validation logs (never fitted on)")
+    cal.add_argument("--out", type=Path, required=True, help="the fitted parameters (.toml, a params file)")
+    cal.add_argument("--report", type=Path, help="a report of every signal before and after (.html or .rrd)")
+    cal.add_argument("--jobs", type=int, default=0, help="parallel rollouts (default: the cores)")
+    cal.add_argument("--backend", choices=("local", "ray"), default="local",
+                     help="where rollouts run: local processes (default) or a Ray cluster")
+    cal.add_argument("--max-evaluations", type=int, default=200, help="evaluations at most (default 200)")
+    cal.add_argument("--signals", default="position_deg,current,force_counts,imu_counts",
+                     help="signal groups in the residual (default: all but speed)")
+    _twin_options(cal, SUPPORTS)
+    cal.add_argument("--json", action="store_true", help="print one JSON object on stdout")
+
+
+def _twin_options(p: argparse.ArgumentParser, supports: tuple[str, ...]) -> None:
+    p.add_argument("--seed", type=int, default=0, help="the twin's seed (default 0)")
+    p.add_argument("--support", choices=supports, default="floor",
+                   help="floor: on its feet (default); stand: the trunk held in the air")
+    p.add_argument("--params", type=Path, help="a params file (TOML: name = value)")
+    p.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
+                   help="a parameter (repeatable)")
+
+
+def _read_log(path: Path) -> Any:
+    from humanoid_twin.compare.robot_log import RobotLogError, read_robot_log
+
+    try:
+        return read_robot_log(path)
+    except RobotLogError as exc:
+        raise usage_error(str(exc)) from None
+
+
+def twin_params(args: argparse.Namespace) -> dict[str, float]:
+    """``--params FILE`` then each ``--set``, checked (one line, exit 2 on a bad one)."""
+    from humanoid_twin.compare.fitparams import ParamError, load_values
+
+    try:
+        return load_values(args.params, args.set)
+    except ParamError as exc:
+        raise usage_error(str(exc)) from None
+
+
+def _check_out(path: Path, what: str, suffixes: tuple[str, ...]) -> None:
+    from humanoid_twin.cli.main import _check_writable
+
+    if path.suffix.lower() not in suffixes:
+        raise usage_error(f"{what} {path}: the file must end in {' or '.join(suffixes)}")
+    _check_writable(path, what)
+
+
+def _commit(tmp: Path, final: Path) -> None:
+    import os
+
+    from humanoid_twin import signals
+
+    with signals.deferred():
+        os.replace(tmp, final)
+
+
+def _temp(path: Path) -> Path:
+    from humanoid_twin.cli.main import temp_name
+
+    return temp_name(path.expanduser())
+
+
+def cmd_compare(args: argparse.Namespace) -> int:
+    """``humanoid-twin compare``."""
+    from humanoid_twin.compare.core import CompareOptions, compare_log
+
+    if args.out is not None:
+        _check_out(args.out, "--out", (".rrd",))
+    params = twin_params(args)
+    log = _read_log(args.log)
+    opts = CompareOptions(seed=args.seed, support=args.support, params=params)
+    result = compare_log(log, opts)
+    if args.out is not None:
+        from humanoid_twin.compare.overlay import write_overlay
+
+        tmp = _temp(args.out)
+        try:
+            write_overlay(tmp, {"": result.series})
+            _commit(tmp, args.out)
+        finally:
+            tmp.unlink(missing_ok=True)
+    d = result.as_dict()
+    if params:
+        d["params"] = dict(params)
+    if args.json:
+        sys.stdout.write(json.dumps(d) + "\n")
+    else:
+        sys.stdout.write(compare_table(d))
+    return 0
+
+
+def _fmt(x: float | None) -> str:
+    return "-" if x is None else f"{x:.3f}"
+
+
+def compare_table(d: dict[str, Any]) -> str:
+    """The people's view of a comparison: frames, then RMS / largest difference per group and
+    the five signals furthest from the log."""
+    lines = [f"log: {d['log']}",
+             f"frames compared {d['frames_compared']}, missing in the twin {d['frames_missing']['twin']}, "
+             f"missing in the log {d['frames_missing']['log']}, warm-up {d['frames_warmup']}, "
+             f"foreign {d['frames_foreign']}, error frames {d['error_frames']}",
+             f"{'group':<14} {'rms':>9} {'max':>9}"]
+    for g, v in d["rms"].items():
+        lines.append(f"{g:<14} {_fmt(v):>9} {_fmt(d['max_abs'][g]):>9}")
+    worst = sorted(((s["rms"] or 0.0, n) for n, s in d["signals"].items()), reverse=True)[:5]
+    if worst and worst[0][0] > 0:
+        lines.append("furthest: " + ", ".join(f"{n} {r:.3f}" for r, n in worst if r > 0))
+    return "\n".join(lines) + "\n"
+
+
+def cmd_calibrate(args: argparse.Namespace) -> int:
+    """``humanoid-twin calibrate``."""
+    from humanoid_twin.compare.calibrate import calibrate_command
+
+    return calibrate_command(args)
