@@ -184,6 +184,9 @@ def build_parser() -> argparse.ArgumentParser:
     from humanoid_twin.cli.sweep import add_sweep_parser
 
     add_sweep_parser(sub)   # its other options are run's (main passes them through)
+    from humanoid_twin.cli.params import add_params_parser
+
+    add_params_parser(sub)  # humanoid-twin params [show FILE | diff A B] (docs/parameters.md)
 
     view = sub.add_parser("view", help="open a recording in the rerun viewer",
                           description="Open FILE.rrd in the rerun viewer (same as `rerun FILE.rrd`).")
@@ -617,6 +620,13 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     return sweep_command(args, build_parser())
 
 
+def cmd_params(args: argparse.Namespace) -> int:
+    """``humanoid-twin params``: the named parameters (cli/params.py, docs/parameters.md)."""
+    from humanoid_twin.cli.params import cmd_params as params_command
+
+    return params_command(args)
+
+
 def _warn_stale_core() -> None:
     """One line on stderr when, in a source tree, a compiled module is older than its source."""
     from humanoid_twin.core import PURE_PYTHON_ENV, stale_modules
@@ -643,7 +653,8 @@ def main(argv: list[str] | None = None) -> int:
             parser.error(f"unrecognized arguments: {' '.join(extra)}")
         args.run_args = extra
         _warn_stale_core()
-        handler = {"run": cmd_run, "serve": cmd_serve, "view": cmd_view, "sweep": cmd_sweep}[args.command]
+        handler = {"run": cmd_run, "serve": cmd_serve, "view": cmd_view, "sweep": cmd_sweep,
+                   "params": cmd_params}[args.command]
         return handler(args)
     except Exception as exc:
         # a signal that landed in an extension module's import comes out wrapped (ImportError)
