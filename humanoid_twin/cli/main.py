@@ -358,7 +358,9 @@ def check_run_inputs(args: argparse.Namespace, load: bool = True) -> dict[str, A
     if args.duration is not None and args.duration < BOOT_MIN_S:
         raise _usage_error(f"--duration {args.duration:g} is shorter than the boot (the Slaves calibrate for "
                            f"{BOOT_MIN_S:g} s; the boot takes ~2.65 simulated seconds): give at least that")
-    spec = load_scenario_arg(args.scenario)
+    from humanoid_twin.cli.params import scenario_with_fields
+
+    spec = scenario_with_fields(load_scenario_arg(args.scenario), args)    # --set scenario.FIELD=V
     where = "plan"
     try:   # the planners' own limits (T fits one byte of 20 ms ticks, each joint's range ...)
         plan = spec.plan(args.T, args.motion, args.perna)

@@ -227,4 +227,5 @@ def run_options(args: argparse.Namespace, controllers: dict[str, Any], files: di
         T=args.T, motion=args.motion, perna=args.perna,
         control=args.control, progress=not args.no_progress, host_controller=controllers["host_controller"],
         host_period_ms=controllers["host_period_ms"], wall_timeout=args.wall_timeout,
+        scenario_fields=dict(vars(args).get("scenario_fields") or {}),
     )

@@ -27,14 +27,47 @@ def add_params_options(p: argparse.ArgumentParser) -> None:
                    "--params; repeatable")
 
 
+def _split_sets(args: argparse.Namespace) -> tuple[list[str], dict[str, str]]:
+    """``--set`` s: the named parameters' texts, and the scenario's fields (``scenario.FIELD=V``)."""
+    from humanoid_twin.scenarios import SCENARIO_FIELD_PREFIX
+
+    sets: list[str] = []
+    fields: dict[str, str] = {}
+    for text in vars(args).get("set_params") or ():
+        name, eq, value = text.partition("=")
+        if name.strip().startswith(SCENARIO_FIELD_PREFIX):
+            field = name.strip()[len(SCENARIO_FIELD_PREFIX):]
+            if not eq or not field or not value.strip():
+                raise usage_error(f"--set {text!r}: expected scenario.FIELD=VALUE")
+            fields[field] = value.strip()
+        else:
+            sets.append(text)
+    return sets, fields
+
+
+def scenario_with_fields(spec: Any, args: argparse.Namespace) -> Any:
+    """``run``'s scenario with its own fields set by ``--set scenario.FIELD=VALUE`` (kept in
+    ``args.scenario_fields``); a usage error for a field it does not have or a bad value."""
+    from humanoid_twin.scenarios import ScenarioInputError, with_fields
+
+    args.scenario_fields = _split_sets(args)[1]
+    try:
+        return with_fields(spec, args.scenario_fields)
+    except ScenarioInputError as exc:
+        raise usage_error(str(exc)) from None
+
+
 def params_from_args(args: argparse.Namespace) -> dict[str, float]:
     """The checked parameters of ``--params`` and ``--set`` (and ``--pic-mhz``, the parameter
     ``pic_mhz``'s own flag): a usage error (exit 2) on a bad one."""
     from humanoid_twin.cycles import DEFAULT_PIC_MHZ
     from humanoid_twin.params import ParamError, merge
 
+    sets, fields = _split_sets(args)
+    if fields and vars(args).get("command") != "run":
+        raise usage_error(f"--set scenario.{next(iter(fields))}: only run (and sweep) run a scenario")
     try:
-        values = merge(vars(args).get("params") or (), vars(args).get("set_params") or ())
+        values = merge(vars(args).get("params") or (), sets)
     except ParamError as exc:
         raise usage_error(str(exc)) from None
     pic = vars(args).get("pic_mhz", DEFAULT_PIC_MHZ)
