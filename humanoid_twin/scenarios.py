@@ -21,6 +21,7 @@ from __future__ import annotations
 import hashlib
 import importlib
 import importlib.util
+import math
 import sys
 import time
 from collections.abc import Callable
@@ -131,6 +132,9 @@ class RunOptions(RigOptions):
     # wall seconds the run may take (None: unbounded); beyond it the run ends with ScenarioError,
     # its files closed (``run --wall-timeout``, sweep's ``--timeout``)
     wall_timeout: float | None = None
+    # a user scenario's own dataclass fields, name -> value (``--set scenario.FIELD=VALUE``,
+    # sweep's ``--param scenario.FIELD=...``): :func:`with_fields`
+    scenario_fields: dict[str, Any] = field(default_factory=dict)
 
 
 _BALANCE_TYPES = (ControlType.REACTION_CONTROL, ControlType.BALANCE_CONTROL)
@@ -407,6 +411,60 @@ def _import(ref: str, where: str) -> Any:
         raise ScenarioLoadError(f"scenario {ref!r}: cannot import {where}: {describe(exc)}") from None
 
 
+SCENARIO_FIELD_PREFIX = "scenario."     # --set scenario.FIELD=VALUE: a user scenario's own field
+_FIELD_TYPES = (bool, int, float, str)
+
+
+def own_fields(spec: Scenario) -> dict[str, Any]:
+    """A user scenario's own dataclass fields (those its class adds to :class:`Scenario`) and
+    their values; a built-in scenario has none."""
+    import dataclasses
+
+    base = {f.name for f in dataclasses.fields(Scenario)}
+    return {f.name: getattr(spec, f.name) for f in dataclasses.fields(spec) if f.name not in base}
+
+
+def with_fields(spec: Scenario, values: dict[str, Any]) -> Scenario:
+    """``spec`` with some of its own fields (:func:`own_fields`) replaced; a text value is read as
+    the field's current type (int, float, bool, str). :class:`ScenarioInputError` (one line) for a
+    field it does not have or a value of the wrong kind."""
+    import dataclasses
+
+    if not values:
+        return spec
+    mine = own_fields(spec)
+    changes: dict[str, Any] = {}
+    for name, value in values.items():
+        if name not in mine:
+            have = ", ".join(sorted(mine)) or "none"
+            raise ScenarioInputError(f"scenario {spec.name} has no field {name!r} of its own "
+                                     f"(its fields: {have})")
+        current = mine[name]
+        kind = type(current)
+        if not isinstance(current, _FIELD_TYPES):
+            raise ScenarioInputError(f"scenario.{name}: a {kind.__name__} field cannot be set from the "
+                                     "command line (int, float, bool, str fields can)")
+        changes[name] = _field_value(name, kind, value)
+    return dataclasses.replace(spec, **changes)
+
+
+def _field_value(name: str, kind: type, value: Any) -> Any:
+    if not isinstance(value, str):
+        return value
+    text = value.strip()
+    try:
+        if kind is bool:
+            if text.lower() not in ("true", "false", "1", "0"):
+                raise ValueError(text)
+            return text.lower() in ("true", "1")
+        v = kind(text)
+        if kind is float and not math.isfinite(v):
+            raise ValueError(text)
+        return v
+    except ValueError:
+        raise ScenarioInputError(f"scenario.{name}={value!r}: not a {kind.__name__}") from None
+
+
 def scenario_name(ref: str | Scenario) -> str:
     """How a run names its scenario (the summary's ``scenario``): the name or reference as given,
     or a Scenario object's ``name``."""
@@ -504,7 +562,8 @@ def run(opts: RunOptions, on_progress: Callable[[float, float | None], None] | N
     ``on_progress(t_s, end_s)`` is called every 0.1 s of virtual time: ``end_s`` is None during
     the boot (its length is not known in advance), then the run's end time. ``on_twin(twin)`` is
     called once the twin is built, before anything is written (``run --viewer`` attaches there)."""
-    spec, label = load_scenario(opts.scenario), scenario_name(opts.scenario)
+    spec = with_fields(load_scenario(opts.scenario), opts.scenario_fields)
+    label = scenario_name(opts.scenario)
     the_plan = run_plan(spec, opts)
     motion_s = spec.motion_s(the_plan)
     host_step = load_host_controller(opts.host_controller) if opts.host_controller is not None else None
@@ -606,6 +665,7 @@ __all__ = ["RunOptions", "outcome", "SLIP_HELD_MM", "SUMMARY_KEYS", "summary_key
            "NO_SUPPORT_MARGIN_MM",
            "Plan", "Scenario", "REGISTRY", "scenario", "get_scenario", "load_scenario", "scenario_name",
            "ENTRY_POINT_GROUP", "boot", "hold", "BootError", "ScenarioError", "ScenarioInputError",
-           "ScenarioLoadError", "SCENARIOS", "CONTROL_CHOICES", "plan", "run", "run_plan", "tilt_profile",
+           "ScenarioLoadError", "SCENARIOS", "with_fields", "own_fields", "SCENARIO_FIELD_PREFIX",
+           "CONTROL_CHOICES", "plan", "run", "run_plan", "tilt_profile",
            "expected_run_s",
            "Rig", "RigOptions", "BOOT_TIMEOUT_S", "TILT_RATE_DEG_S", "SETTLE_S", "BOOT_MIN_S"]
