@@ -13,10 +13,12 @@ counted from the actuation packets each side carried: the same key is the same q
 the robot and of the twin, whatever the clocks. A key on one side only is a frame missing on the
 other (the robot's Slave stayed silent, a frame lost, a log cut short).
 
-A log that begins after the boot (its Slaves report themselves calibrated in their first Sensors
-frames) starts the twin's Slaves uncalibrated: they calibrate on the first actuation, as at
-power-on, and the rounds in which the twin's board is still calibrating while the robot's was
-not are counted (``frames_warmup``) and left out of the statistics (docs/calibration.md).
+A log that begins after the boot (its first Sensors frame says its Slave is calibrated) is
+preceded on the twin by a *pre-roll* of :data:`PREROLL_US`: the log's first Actuation 1 and 2 of
+each SCU, repeated on the Master's schedule (seed 002 slide 27), so that the twin's Slaves move to
+the log's first positions and calibrate there, as the robot's did at its boot, before the log's
+first frame. The twin's frames of the pre-roll are not compared. A round in which the twin's
+board still calibrates while the robot's did not is counted (``frames_warmup``) and left out.
 """
 
 from __future__ import annotations
@@ -32,6 +34,7 @@ import numpy as np
 from humanoid_twin.clock import US_PER_S
 from humanoid_twin.compare.robot_log import ACTUATION_OF, SENSORS_OF, LogFrame, RobotLog
 from humanoid_twin.compare.signals import GROUP_UNITS, GROUPS, QUANTUM, SIGNALS, Signal, decode_packet
+from humanoid_twin.master.pic import ROUND_US, SLAVE_PERIOD_US, TIMER_PERIOD_US
 from humanoid_twin.protocol import canframes
 from humanoid_twin.protocol.wire import STATUS_CALIB
 
@@ -39,6 +42,9 @@ __all__ = ["CompareOptions", "CompareResult", "LogPlayer", "SUPPORTS", "compare_
            "compare_log", "key_frames"]
 
 SUPPORTS = ("floor", "stand")
+# a log that starts after the boot: the twin's boot on the log's first actuation, before it
+# (the Slaves' calibration, 100 + 25 PWM periods, then a margin), whole rounds of the schedule
+PREROLL_US = 375 * ROUND_US
 TAIL_US = 2_000          # the twin runs this long past the log's last frame (the last answers)
 
 Key = tuple[int, int, int]        # (scu, packet index, round)
@@ -133,11 +139,11 @@ class LogPlayer:
 
     NODE = "log-player"
 
-    def __init__(self, twin: Any, log: RobotLog) -> None:
+    def __init__(self, twin: Any, log: RobotLog, preroll: list[LogFrame] | None = None) -> None:
         self.clock = twin.clock
         self.ctrl = twin.network.attach(self.NODE, canframes.master_filters(), None)
-        self.frames = log.master
-        self.starts = [log.master_start_us(f) for f in self.frames]
+        self.frames = list(preroll or ()) + log.master
+        self.starts = [f.t_us for f in preroll or ()] + [log.master_start_us(f) for f in log.master]
         self.sent = 0
         self.refused = 0
         self._i = 0
@@ -197,6 +203,24 @@ def key_frames(frames: Iterable[LogFrame]) -> tuple[dict[Key, LogFrame], int]:
     return out, dup
 
 
+def preroll_frames(log: RobotLog) -> list[LogFrame]:
+    """The pre-roll before a log that starts after the boot: each SCU's first Actuation 1 and 2
+    of the log, on the Master's schedule (slot 0 and slot 2 of its millisecond) from the twin's
+    instant 0 to :data:`PREROLL_US`; ``t_us`` here is each frame's start (TXREQ)."""
+    first: dict[int, LogFrame] = {}
+    for f in log.master:
+        first.setdefault(f.arbitration_id, f)
+    out: list[LogFrame] = []
+    for t in range(0, PREROLL_US, ROUND_US):
+        for scu, ids in canframes.ACTUATION_IDS.items():
+            for idx, arb in enumerate(ids):
+                f = first.get(arb)
+                if f is not None:
+                    slot_us = t + (scu - 1) * SLAVE_PERIOD_US + 2 * idx * TIMER_PERIOD_US
+                    out.append(LogFrame(slot_us, arb, f.data))
+    return out
+
+
 def _merged(log: RobotLog) -> list[LogFrame]:
     return sorted(log.master + log.sensors, key=lambda f: f.t_us)
 
@@ -208,7 +232,9 @@ def _hold_support(twin: Any, support: str) -> None:
 
 def run_twin(log: RobotLog, opts: CompareOptions) -> list[LogFrame]:
     """Drive a twin (no Master; :class:`LogPlayer` in its place) with the log's Master frames up
-    to the log's end; the robot's frames its wire carried, in time order."""
+    to the log's end (after a pre-roll when the log starts after the boot: the log is then
+    :meth:`RobotLog.shifted` by :data:`PREROLL_US`); the robot's frames its wire carried from the
+    log's start, in time order."""
     from humanoid_twin.twin import Twin
 
     kwargs: dict[str, Any] = {}
@@ -219,8 +245,13 @@ def run_twin(log: RobotLog, opts: CompareOptions) -> list[LogFrame]:
         _hold_support(twin, opts.support)
         collector = _Collector()
         twin.network.add_listener(collector)
-        LogPlayer(twin, log)
+        preroll = preroll_frames(log) if log.started_after_boot else []
+        if preroll:
+            log = log.shifted(PREROLL_US)
+        LogPlayer(twin, log, preroll)
         twin.advance_to(log.duration_us + TAIL_US)
+        if preroll:
+            return [f._replace(t_us=f.t_us - PREROLL_US) for f in collector.frames if f.t_us >= PREROLL_US]
         return collector.frames
     finally:
         twin.close()
@@ -235,10 +266,7 @@ def compare_frames(log: RobotLog, twin_frames: Sequence[LogFrame], opts: Compare
     """Pair the log's Sensors frames with the twin's and compute the statistics."""
     log_keyed, _ = key_frames(_merged(log))
     twin_keyed, _ = key_frames(twin_frames)
-    started_after_boot = False
-    first1 = next((f for f in log.sensors if SENSORS_OF[f.arbitration_id][1] == 0), None)
-    if first1 is not None:
-        started_after_boot = _calibrated(decode_packet(0, first1.data)[1])
+    started_after_boot = log.started_after_boot
     # per (scu, round): the twin still calibrating while the robot was not (warm-up)
     warm: set[tuple[int, int]] = set()
     status_mismatches = 0

@@ -33,6 +33,7 @@ from humanoid_twin.bus.frames import frame_bits
 from humanoid_twin.clock import US_PER_S
 from humanoid_twin.protocol import canframes
 from humanoid_twin.protocol.canframes import CAN_BITRATE, PAYLOAD_LEN, PayloadError
+from humanoid_twin.protocol.wire import STATUS_CALIB
 
 __all__ = ["LogFrame", "RobotLog", "RobotLogError", "read_robot_log", "robot_log_from_messages",
            "ACTUATION_OF", "SENSORS_OF"]
@@ -70,6 +71,19 @@ class RobotLog:
     frames_foreign: int = 0          # not the robot's (other IDs, extended, remote, bad payloads)
     error_frames: int = 0
     clock_offset_s: float = 0.0      # the logged time of the twin's instant 0
+
+    @property
+    def started_after_boot(self) -> bool:
+        """Whether the log begins after the boot: its first Sensors 1 frame says its Slave is
+        calibrated (Status bit 6)."""
+        first = next((f for f in self.sensors if SENSORS_OF[f.arbitration_id][1] == 0), None)
+        return first is not None and bool(first.data[7] & STATUS_CALIB)
+
+    def shifted(self, dt_us: int) -> RobotLog:
+        """The same log ``dt_us`` later on the twin's clock."""
+        return RobotLog(self.path, [f._replace(t_us=f.t_us + dt_us) for f in self.master],
+                        [f._replace(t_us=f.t_us + dt_us) for f in self.sensors], self.frames_total,
+                        self.frames_foreign, self.error_frames, self.clock_offset_s - dt_us / US_PER_S)
 
     @property
     def duration_us(self) -> int:
