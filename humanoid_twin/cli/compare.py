@@ -56,6 +56,8 @@ def add_compare_parsers(sub: Any) -> None:
     cal.add_argument("--max-evaluations", type=int, default=200, help="evaluations at most (default 200)")
     cal.add_argument("--signals", default="position_deg,current,force_counts,imu_counts",
                      help="signal groups in the residual (default: all but speed)")
+    cal.add_argument("--smooth", type=float, default=1.0, metavar="S",
+                     help="each signal's residual averaged over S seconds of frames (default 1; 0: raw)")
     _twin_options(cal, SUPPORTS)
     cal.add_argument("--json", action="store_true", help="print one JSON object on stdout")
 
@@ -161,7 +163,106 @@ def compare_table(d: dict[str, Any]) -> str:
 
 
 def cmd_calibrate(args: argparse.Namespace) -> int:
-    """``humanoid-twin calibrate``."""
-    from humanoid_twin.compare.calibrate import calibrate_command
+    """``humanoid-twin calibrate``: every input checked first, then the fit, then the outputs."""
+    import os
 
-    return calibrate_command(args)
+    from humanoid_twin.compare.calibrate import FitProblem, fit, groups_arg, write_params_toml
+    from humanoid_twin.compare.fitparams import ParamError, expand_fit
+
+    _check_out(args.out, "--out", (".toml",))
+    if args.report is not None:
+        _check_out(args.report, "--report", (".html", ".rrd"))
+    if args.jobs < 0:
+        raise usage_error(f"--jobs {args.jobs}: must be 0 (the cores) or more")
+    if not 0 <= args.smooth <= 60:
+        raise usage_error(f"--smooth {args.smooth}: must be 0..60 s")
+    if args.max_evaluations < 1:
+        raise usage_error(f"--max-evaluations {args.max_evaluations}: must be 1 or more")
+    try:
+        groups = groups_arg(args.signals)
+    except ValueError as exc:
+        raise usage_error(str(exc)) from None
+    if args.backend == "ray":
+        try:
+            import ray  # noqa: F401
+        except ImportError:
+            raise usage_error("--backend ray needs Ray: pip install 'humanoid-twin[ray]'") from None
+    try:
+        import mujoco.sysid  # noqa: F401
+        import scipy  # noqa: F401
+    except ImportError:
+        raise usage_error("calibrate needs MuJoCo's sysid toolbox: "
+                          "pip install 'humanoid-twin[calibrate]'") from None
+    base = twin_params(args)
+    try:
+        unknowns = expand_fit(args.fit, args.tie, base)
+    except ParamError as exc:
+        raise usage_error(str(exc)) from None
+    fitted_names = {n for u in unknowns for n in u.names}
+    logs = [_read_log(p) for p in args.logs]
+    validate = [_read_log(p) for p in args.validate]
+    jobs = args.jobs or os.cpu_count() or 1
+    from humanoid_twin.master.pic import ROUND_US
+
+    problem = FitProblem(logs=logs, unknowns=unknowns, seed=args.seed, support=args.support, groups=groups,
+                         base={k: v for k, v in base.items() if k not in fitted_names},
+                         window=max(1, round(args.smooth * 1e6 / ROUND_US)))
+    result = fit(problem, validate=validate, jobs=jobs, backend=args.backend,
+                 max_evaluations=args.max_evaluations,
+                 progress=lambda text: sys.stderr.write(text + "\n"))
+    d = result.as_dict()
+    header = (f"humanoid-twin calibrate: {', '.join(str(p) for p in args.logs)} (seed {args.seed}, "
+              f"support {args.support})\nresidual {d['residual_before']:.4f} -> {d['residual_after']:.4f} "
+              "quanta RMS; parameters not identified are left out")
+    temps = []
+    try:
+        tmp = _temp(args.out)
+        temps.append((tmp, args.out))
+        write_params_toml(tmp, result.values, header)
+        if args.report is not None:
+            rtmp = _temp(args.report)
+            temps.append((rtmp, args.report))
+            if args.report.suffix.lower() == ".rrd":
+                from humanoid_twin.compare.overlay import write_overlay
+
+                runs = {}
+                for tag, pairs in (("training", zip(result.before, result.after, strict=True)),
+                                   ("validation", zip(result.val_before, result.val_after, strict=True))):
+                    for i, (b, a) in enumerate(pairs):
+                        runs[f"before/{tag}{i}"] = b.series
+                        runs[f"after/{tag}{i}"] = a.series
+                write_overlay(rtmp, runs)
+            else:
+                from humanoid_twin.compare.report import write_report
+
+                write_report(rtmp, result.fitted, d, list(zip(result.before, result.after, strict=True)),
+                             list(zip(result.val_before, result.val_after, strict=True)))
+        for t, final in temps:
+            _commit(t, final)
+    finally:
+        for t, _ in temps:
+            t.unlink(missing_ok=True)
+    d["out"] = str(args.out)
+    if args.report is not None:
+        d["report"] = str(args.report)
+    if args.json:
+        sys.stdout.write(json.dumps(d) + "\n")
+    else:
+        sys.stdout.write(calibrate_table(d))
+    return 0
+
+
+def calibrate_table(d: dict[str, Any]) -> str:
+    """The people's view of a fit."""
+    lines = [f"{'parameter':<28} {'start':>10} {'fitted':>10}  95 % interval"]
+    for name, e in d["fitted"].items():
+        ci = "-" if e["ci95"] is None else f"{e['ci95'][0]:.4g} .. {e['ci95'][1]:.4g}"
+        lines.append(f"{name:<28} {e['start']:>10.4g} {e['value']:>10.4g}  {ci}")
+        if not e["identifiable"]:
+            lines.append(f"  not identifiable from these logs: needs {e['needs']}")
+    lines.append(f"residual {d['residual_before']:.4f} -> {d['residual_after']:.4f} quanta RMS "
+                 f"({d['evaluations']} evaluations, {d['wall_s']:.1f} s)")
+    if d["validation_before"] is not None:
+        lines.append(f"validation {d['validation_before']:.4f} -> {d['validation_after']:.4f}")
+    lines.append(f"wrote {d['out']}" + (f" and {d['report']}" if "report" in d else ""))
+    return "\n".join(lines) + "\n"

@@ -96,8 +96,9 @@ class CompareResult:
     max_abs: dict[str, float | None]
     signals: dict[str, SignalStats]
     series: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]]   # name -> (t_us, twin, log)
-    residual: np.ndarray               # per compared value, (twin - log) / quantum (calibrate)
-    residual_groups: np.ndarray        # each residual's group index in GROUPS
+    # per signal, one value per log frame: (twin - log) / quantum (calibrate); 0 for a warm-up
+    # round, the twin's last value held for a frame it did not send
+    residuals: dict[str, np.ndarray]
     options: CompareOptions
     wall_s: float = 0.0
 
@@ -123,14 +124,25 @@ class CompareResult:
             "wall_s": round(self.wall_s, 3),
         }
 
-    def residual_norm(self, groups: Iterable[str] | None = None) -> float:
-        """The RMS of the residual (each value divided by its quantum), over ``groups`` (all)."""
-        r = self.residual if groups is None else self.residual[self.group_mask(groups)]
-        return float(np.sqrt(np.mean(r * r))) if r.size else 0.0
+    def residual_vector(self, groups: Iterable[str] | None = None, window: int = 1) -> np.ndarray:
+        """The residuals of the signals of ``groups`` (all), one signal after the other, each
+        averaged over ``window`` consecutive frames (1: as they are) ."""
+        keep = set(GROUPS if groups is None else groups)
+        parts = []
+        for s in SIGNALS:
+            if s.group not in keep:
+                continue
+            r = self.residuals[s.name]
+            if window > 1 and r.size >= window:
+                c = np.cumsum(np.concatenate(([0.0], r)))
+                r = (c[window:] - c[:-window]) / window
+            parts.append(r)
+        return np.concatenate(parts) if parts else np.zeros(0)
 
-    def group_mask(self, groups: Iterable[str]) -> np.ndarray:
-        idx = [GROUPS.index(g) for g in groups]
-        return np.isin(self.residual_groups, idx)
+    def residual_norm(self, groups: Iterable[str] | None = None, window: int = 1) -> float:
+        """The RMS of :meth:`residual_vector`."""
+        r = self.residual_vector(groups, window)
+        return float(np.sqrt(np.mean(r * r))) if r.size else 0.0
 
 
 class LogPlayer:
@@ -285,25 +297,24 @@ def compare_frames(log: RobotLog, twin_frames: Sequence[LogFrame], opts: Compare
         by_packet.setdefault((s.scu, s.packet), []).append(s)
     values: dict[str, tuple[list[int], list[int], list[int]]] = {s.name: ([], [], []) for s in SIGNALS}
     held: dict[str, int] = {}
-    res: list[float] = []
-    res_g: list[int] = []
-    group_index = {g: i for i, g in enumerate(GROUPS)}
+    res: dict[str, list[float]] = {s.name: [] for s in SIGNALS}
     compared = warmup = missing_twin = 0
     for key in sorted(log_keyed, key=lambda k: (log_keyed[k].t_us, k)):
         scu, idx, rnd = key
         lf = log_keyed[key]
         tf = twin_keyed.get(key)
+        sigs = by_packet.get((scu, idx), ())
         if (scu, rnd) in warm:
             warmup += 1
+            for s in sigs:      # not compared; the residual keeps its length (one per log value)
+                res[s.name].append(0.0)
             continue
-        sigs = by_packet.get((scu, idx), ())
         lv = decode_packet(idx, lf.data)[0]
         if tf is None:
             missing_twin += 1
             for s in sigs:      # the residual keeps its length: the twin's last value holds
                 twin_v = held.get(s.name, lv[s.field])
-                res.append((twin_v - lv[s.field]) / QUANTUM[s.group])
-                res_g.append(group_index[s.group])
+                res[s.name].append((twin_v - lv[s.field]) / QUANTUM[s.group])
             continue
         compared += 1
         tv = decode_packet(idx, tf.data)[0]
@@ -313,8 +324,7 @@ def compare_frames(log: RobotLog, twin_frames: Sequence[LogFrame], opts: Compare
             a.append(tv[s.field])
             b.append(lv[s.field])
             held[s.name] = tv[s.field]
-            res.append((tv[s.field] - lv[s.field]) / QUANTUM[s.group])
-            res_g.append(group_index[s.group])
+            res[s.name].append((tv[s.field] - lv[s.field]) / QUANTUM[s.group])
     missing_log = sum(1 for k in twin_keyed if k not in log_keyed and (k[0], k[2]) not in warm)
     signals: dict[str, SignalStats] = {}
     series: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
@@ -345,7 +355,7 @@ def compare_frames(log: RobotLog, twin_frames: Sequence[LogFrame], opts: Compare
         frames_foreign=log.frames_foreign, error_frames=log.error_frames, master_frames=len(log.master),
         status_mismatches=status_mismatches, started_after_boot=started_after_boot,
         clock_offset_s=log.clock_offset_s, rms=rms, max_abs=max_abs, signals=signals, series=series,
-        residual=np.asarray(res, dtype=float), residual_groups=np.asarray(res_g, dtype=np.int8),
+        residuals={name: np.asarray(v, dtype=float) for name, v in res.items()},
         options=opts, wall_s=wall_s)
 
 
