@@ -43,6 +43,7 @@ from humanoid_twin.host.planners import (
     empty_plan,
     flexao,
     inclinar,
+    leg_pose,
     levantar_perna,
     with_control,
 )
@@ -243,7 +244,7 @@ def get_scenario(name: str) -> Scenario:
 
 DEFAULT_T_S = 1.0           # the planners' default motion period (``--T``)
 # the planners' default angle (``--motion``, degrees) per scenario; ``--help`` shows them
-DEFAULT_MOTION_DEG = {"flexao": 20.0, "inclinar": 10.0, "levantar_perna": 40.0}
+DEFAULT_MOTION_DEG = {"flexao": 20.0, "inclinar": 10.0, "levantar_perna": 40.0, "excite": 6.0}
 # ``stand``: the vertical posture, both feet down, BALANCE_CONTROL on the leg boards and
 # LOCOMOTION_CONTROL on the hips. In double support the two legs must not run the same law
 # (they fight through the pelvis, docs/balance.md): the right leg leads (its foot front joint
@@ -297,6 +298,57 @@ def _levantar_perna(T: float | None, motion: float | None, perna: int) -> Plan:
     n = len(t)
     single = tuple(m in BALANCE_MOTIONS for m in range(n))   # the other foot is up
     return Plan(pos, k, t, lead=(support,) * n, single=single)
+
+
+# ``excite`` (beyond the seeds, docs/calibration.md): the motion whose CAN log determines the
+# servo and sensor parameters (``humanoid-twin calibrate``). Both feet stay down all along.
+EXCITE_T_S = 0.75                     # its slowest period (``--T``)
+EXCITE_CHIRP = (1.0, 0.6, 0.4, 0.25)  # the squat chirp's half periods, times T
+EXCITE_SHIFT = 1.5                    # the weight shift's lean, times the amplitude
+EXCITE_STEP_S = 0.1                   # a joint's step: 5 PWM periods up, 5 back ...
+EXCITE_HOLD_S = 0.2                   # ... then held (the step response settles)
+EXCITE_JOINTS = ("ankle_roll", "ankle_pitch", "knee", "hip_roll", "hip_pitch")
+
+
+def excite_plan(T: float, amplitude: float) -> Plan:
+    """The excitation motion: (1) the weight shifted from foot to foot (the ``inclinar`` pose,
+    ``EXCITE_SHIFT`` x ``amplitude``, each way and back, ``T`` each); (2) a squat chirp (the
+    ``flexao`` pose of ``amplitude``, down and up with half periods ``EXCITE_CHIRP`` x ``T``);
+    (3) a step of ``amplitude / 2`` on each leg joint of each leg in turn (up and back in
+    ``EXCITE_STEP_S``, held ``EXCITE_HOLD_S``). LOCOMOTION_CONTROL on the legs and hips; every
+    angle within the planners' limits (``amplitude`` 1..10 deg)."""
+    a = float(amplitude)
+    if not 1.0 <= a <= 10.0:
+        raise ValueError(f"excite: --motion (the amplitude) must be 1..10 degrees, got {amplitude!r}")
+    poses: list[tuple[dict[int, dict[str, float]], float]] = []
+    shift = EXCITE_SHIFT * a
+    for lean in (shift, 0.0, -shift, 0.0):
+        poses.append(({side: {"hip_roll": -lean, "ankle_roll": lean} for side in (0, 1)}, T))
+    for half in EXCITE_CHIRP:
+        squat = {"hip_pitch": -a, "knee": 2 * a, "ankle_pitch": -a}
+        poses.append(({0: squat, 1: squat}, half * T))
+        poses.append(({0: {}, 1: {}}, half * T))
+    for side in (0, 1):
+        for joint in EXCITE_JOINTS:
+            poses.append(({side: {joint: a / 2}}, EXCITE_STEP_S))
+            poses.append(({}, EXCITE_STEP_S))
+            poses.append(({}, EXCITE_HOLD_S))
+    pos, k, t = empty_plan(len(poses))
+    for m, (legs, period) in enumerate(poses):
+        for side in (0, 1):
+            leg_pose(pos, m, side, **legs.get(side, {}))
+        for scu in LEG_SCUS:
+            k[scu - 1, :, m] = control_row(ControlType.LOCOMOTION_CONTROL)
+        t[m] = period
+    return Plan(pos, k, t)
+
+
+@scenario("excite", double_support=True)
+def _excite(T: float | None, motion: float | None, perna: int) -> Plan:
+    """excitation for calibrate: weight shift foot to foot, a squat chirp, a step on each leg joint;
+    --motion = amplitude (deg), --T = slowest period"""
+    amplitude = DEFAULT_MOTION_DEG["excite"] if motion is None else motion
+    return excite_plan(EXCITE_T_S if T is None else T, amplitude)
 
 
 SCENARIOS: tuple[str, ...] = tuple(REGISTRY)   # the built-in scenarios, in registration order
