@@ -45,6 +45,8 @@ DEFAULT_MODEL_NAME = "scene.xml"
 DEFAULT_MODEL = Path(str(MODELS / DEFAULT_MODEL_NAME))   # where it is on disk (an installed package)
 
 PAD_SUFFIXES: tuple[str, str, str, str] = ("fl", "fr", "rl", "rr")   # table 12 order
+HOLD_LIFT_MM = 100.0               # compare --support stand: the trunk held this high above its stand pose
+HOLD_ARMATURE = 1e9                # ... by an armature that makes its free joint immovable
 TILT_MAX_DEG = 45.0                # the platform tilts at most this far (either way)
 _TILT_MAX_DEG = TILT_MAX_DEG
 _TILT_PROFILE_CHUNK_US = 10_000    # a tilt profile is re-evaluated at least every 10 ms
@@ -440,6 +442,23 @@ class Plant(BoardIO):
             raise PlantInputError(f"trunk force must be finite, got {forward_n!r}")
         self.data.xfrc_applied[self._trunk, :] = 0.0
         self.data.xfrc_applied[self._trunk, 0] = f
+
+    def hold_trunk(self, lift_mm: float = HOLD_LIFT_MM) -> None:
+        """Hold the trunk in the air, as on a test stand (``compare --support stand``): the trunk
+        is raised by ``lift_mm`` (the feet clear the floor) and its free joint given an armature of
+        :data:`HOLD_ARMATURE` (kg, kg.m2) on each of its six degrees of freedom, so that whatever
+        the legs do the trunk does not move (its acceleration is the forces over 1e9: under a
+        micrometre in a minute). Call before the first step; it stays held."""
+        self._sync()
+        m, d = self.model, self.data
+        j = int(m.body_jntadr[self._trunk])
+        if j < 0 or m.jnt_type[j] != mujoco.mjtJoint.mjJNT_FREE:
+            raise PlantError("hold_trunk: the model's trunk has no free joint")
+        q, v = int(m.jnt_qposadr[j]), int(m.jnt_dofadr[j])
+        m.dof_armature[v:v + 6] = HOLD_ARMATURE
+        d.qpos[q + 2] += float(lift_mm) / 1000.0
+        d.qvel[v:v + 6] = 0.0
+        mujoco.mj_forward(m, d)
 
     def servo_angle_deg(self, scu: int, i: int) -> float:
         """True shaft angle of servo ``i`` (0..2) of ``scu``, servo frame, degrees (ground truth)."""
