@@ -187,12 +187,12 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
             import ray  # noqa: F401
         except ImportError:
             raise usage_error("--backend ray needs Ray: pip install 'humanoid-twin[ray]'") from None
+    from humanoid_twin.plant.sysid import SysidMissingError, toolbox
+
     try:
-        import mujoco.sysid  # noqa: F401
-        import scipy  # noqa: F401
-    except ImportError:
-        raise usage_error("calibrate needs MuJoCo's sysid toolbox: "
-                          "pip install 'humanoid-twin[calibrate]'") from None
+        toolbox()
+    except SysidMissingError as exc:
+        raise usage_error(str(exc).split(" (")[0]) from None
     base = twin_params(args)
     try:
         unknowns = expand_fit(args.fit, args.tie, base)

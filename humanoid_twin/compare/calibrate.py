@@ -236,8 +236,9 @@ def _norm(results: Sequence[CompareResult], groups: Sequence[str], window: int =
 def fit(problem: FitProblem, *, validate: Sequence[RobotLog] = (), jobs: int = 1, backend: str = "local",
         max_evaluations: int = 200, progress: Callable[[str], None] | None = None) -> FitResult:
     """Fit ``problem``'s unknowns (see the module's docstring); ``validate``: logs kept apart."""
-    from mujoco import sysid
+    from humanoid_twin.plant.sysid import toolbox
 
+    sysid = toolbox()
     say = progress or (lambda text: None)
     t0 = time.perf_counter()
     unknowns = problem.unknowns
