@@ -302,8 +302,8 @@ def _levantar_perna(T: float | None, motion: float | None, perna: int) -> Plan:
 
 # ``excite`` (beyond the seeds, docs/calibration.md): the motion whose CAN log determines the
 # servo and sensor parameters (``humanoid-twin calibrate``). Both feet stay down all along.
-EXCITE_T_S = 0.75                     # its slowest period (``--T``)
-EXCITE_CHIRP = (1.0, 0.6, 0.4, 0.25)  # the squat chirp's half periods, times T
+EXCITE_SHIFT_T = 0.75                   # each weight shift's period, times T (``--T``, default 1 s)
+EXCITE_CHIRP = (0.75, 0.45, 0.3, 0.2)   # the squat chirp's half periods, times T
 EXCITE_SHIFT = 1.5                    # the weight shift's lean, times the amplitude
 EXCITE_STEP_S = 0.1                   # a joint's step: 5 PWM periods up, 5 back ...
 EXCITE_HOLD_S = 0.2                   # ... then held (the step response settles)
@@ -312,18 +312,18 @@ EXCITE_JOINTS = ("ankle_roll", "ankle_pitch", "knee", "hip_roll", "hip_pitch")
 
 def excite_plan(T: float, amplitude: float) -> Plan:
     """The excitation motion: (1) the weight shifted from foot to foot (the ``inclinar`` pose,
-    ``EXCITE_SHIFT`` x ``amplitude``, each way and back, ``T`` each); (2) a squat chirp (the
-    ``flexao`` pose of ``amplitude``, down and up with half periods ``EXCITE_CHIRP`` x ``T``);
-    (3) a step of ``amplitude / 2`` on each leg joint of each leg in turn (up and back in
-    ``EXCITE_STEP_S``, held ``EXCITE_HOLD_S``). LOCOMOTION_CONTROL on the legs and hips; every
-    angle within the planners' limits (``amplitude`` 1..10 deg)."""
+    ``EXCITE_SHIFT`` x ``amplitude``, each way and back, ``EXCITE_SHIFT_T`` x ``T`` each);
+    (2) a squat chirp (the ``flexao`` pose of ``amplitude``, down and up with half periods
+    ``EXCITE_CHIRP`` x ``T``); (3) a step of ``amplitude / 2`` on each leg joint of each leg in
+    turn (up and back in ``EXCITE_STEP_S``, held ``EXCITE_HOLD_S``). LOCOMOTION_CONTROL on the
+    legs and hips; every angle within the planners' limits (``amplitude`` 1..10 deg)."""
     a = float(amplitude)
     if not 1.0 <= a <= 10.0:
         raise ValueError(f"excite: --motion (the amplitude) must be 1..10 degrees, got {amplitude!r}")
     poses: list[tuple[dict[int, dict[str, float]], float]] = []
     shift = EXCITE_SHIFT * a
     for lean in (shift, 0.0, -shift, 0.0):
-        poses.append(({side: {"hip_roll": -lean, "ankle_roll": lean} for side in (0, 1)}, T))
+        poses.append(({side: {"hip_roll": -lean, "ankle_roll": lean} for side in (0, 1)}, EXCITE_SHIFT_T * T))
     for half in EXCITE_CHIRP:
         squat = {"hip_pitch": -a, "knee": 2 * a, "ankle_pitch": -a}
         poses.append(({0: squat, 1: squat}, half * T))
@@ -346,9 +346,9 @@ def excite_plan(T: float, amplitude: float) -> Plan:
 @scenario("excite", double_support=True)
 def _excite(T: float | None, motion: float | None, perna: int) -> Plan:
     """excitation for calibrate: weight shift foot to foot, a squat chirp, a step on each leg joint;
-    --motion = amplitude (deg), --T = slowest period"""
+    --motion = amplitude (deg), --T = time scale"""
     amplitude = DEFAULT_MOTION_DEG["excite"] if motion is None else motion
-    return excite_plan(EXCITE_T_S if T is None else T, amplitude)
+    return excite_plan(DEFAULT_T_S if T is None else T, amplitude)
 
 
 SCENARIOS: tuple[str, ...] = tuple(REGISTRY)   # the built-in scenarios, in registration order
