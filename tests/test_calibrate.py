@@ -104,3 +104,23 @@ def test_bad_input_is_one_line_exit_2(robot: Path, tmp_path: Path) -> None:
                     "groups are")
     assert out.read_text() == '"pic_mhz" = 40.0\n'      # nothing replaced
     _one_line_exit2(_cli("compare", log, "--set", "servo.r_knee.kp=-3"), "servo.r_knee.kp")
+
+
+def test_excite_plan_stays_within_its_limits() -> None:
+    import numpy as np
+
+    from humanoid_twin.scenarios import REGISTRY, excite_plan
+
+    plan = REGISTRY["excite"].factory(None, None, 1)
+    assert plan.t.size > 30 and float(plan.t.sum()) < 15.0
+    assert np.abs(plan.pos_apply).max() <= 12.0          # twice the amplitude at most (the squat's knee)
+    with pytest.raises(ValueError, match="1..10"):
+        excite_plan(1.0, 25.0)
+
+
+@pytest.mark.slow
+def test_excite_runs_and_holds(tmp_path: Path) -> None:
+    r = _cli("run", "excite", "--no-record", "--json", cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    d = json.loads(r.stdout)
+    assert d["fell"] is False and d["completed"] is True and d["cop_margin_min_mm"] > 0

@@ -181,3 +181,20 @@ def test_bad_input_is_one_line_exit_2(flexao_log: Path, tmp_path: Path) -> None:
     _one_line_exit2(_cli("compare", str(text), "--out", str(out)), "none of the robot's frames")
     assert out.read_bytes() == b"old"
     _one_line_exit2(_cli("compare", str(flexao_log), "--out", str(tmp_path / "x.txt")), "must end in .rrd")
+
+
+def test_support_stand_holds_the_trunk_in_the_air(flexao_log: Path) -> None:
+    """On a stand the twin's feet carry nothing while the robot's stood on them: the forces
+    differ by the robot's weight; the trunk stays where it was put."""
+    from humanoid_twin.plant.plant import HOLD_LIFT_MM
+    from humanoid_twin.twin import Twin
+
+    floor = compare_log(read_robot_log(flexao_log), CompareOptions(support="floor"))
+    stand = compare_log(read_robot_log(flexao_log), CompareOptions(support="stand"))
+    assert floor.rms["force_counts"] == 0.0
+    assert stand.rms["force_counts"] > 5.0 and stand.frames_compared == floor.frames_compared
+    with Twin(seed=0, master=False) as tw:
+        z0 = float(tw.plant.data.qpos[2])
+        tw.plant.hold_trunk()
+        tw.advance_to(2_000_000)
+        assert abs(float(tw.plant.data.qpos[2]) - (z0 + HOLD_LIFT_MM / 1000)) < 1e-5

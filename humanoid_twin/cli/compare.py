@@ -66,9 +66,9 @@ def _twin_options(p: argparse.ArgumentParser, supports: tuple[str, ...]) -> None
     p.add_argument("--seed", type=int, default=0, help="the twin's seed (default 0)")
     p.add_argument("--support", choices=supports, default="floor",
                    help="floor: on its feet (default); stand: the trunk held in the air")
-    p.add_argument("--params", type=Path, help="a params file (TOML: name = value)")
-    p.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
-                   help="a parameter (repeatable)")
+    from humanoid_twin.cli.params import add_params_options
+
+    add_params_options(p)       # --params FILE.toml, --set NAME=VALUE (docs/parameters.md)
 
 
 def _read_log(path: Path) -> Any:
@@ -82,12 +82,9 @@ def _read_log(path: Path) -> Any:
 
 def twin_params(args: argparse.Namespace) -> dict[str, float]:
     """``--params FILE`` then each ``--set``, checked (one line, exit 2 on a bad one)."""
-    from humanoid_twin.compare.fitparams import ParamError, load_values
+    from humanoid_twin.cli.params import params_from_args
 
-    try:
-        return load_values(args.params, args.set)
-    except ParamError as exc:
-        raise usage_error(str(exc)) from None
+    return params_from_args(args)
 
 
 def _check_out(path: Path, what: str, suffixes: tuple[str, ...]) -> None:

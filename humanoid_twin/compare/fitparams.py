@@ -1,20 +1,18 @@
 """The parameters ``compare`` and ``calibrate`` take, through the project's parameter registry
 (humanoid_twin/params.py: names, units, defaults, bounds; docs/parameters.md).
 
-``load_values(file, sets)``: ``--params FILE`` then each ``--set NAME=VALUE``, checked by the
-registry. ``expand_fit(fit, tie)``: the fitted unknowns, each a group of names sharing one value
+``expand_fit(fit, tie)``: the fitted unknowns, each a group of names sharing one value
 (a glob in ``--fit`` gives one unknown per match; ``--tie`` one unknown for all its matches),
 with the bounds and the default of its first name.
 """
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Any
 
-__all__ = ["ParamError", "Unknown", "load_values", "expand_fit", "registry_or_error"]
+__all__ = ["ParamError", "Unknown", "expand_fit", "registry_or_error"]
 
 
 class ParamError(ValueError):
@@ -37,21 +35,6 @@ def _wrap(fn: Any, *args: Any) -> Any:
         return fn(*args)
     except P.ParamError as exc:
         raise ParamError(str(exc)) from None
-
-
-def load_values(path: Path | None, sets: Sequence[str]) -> dict[str, float]:
-    """``--params FILE`` (or nothing) then every ``--set NAME=VALUE``, checked: name -> value."""
-    if path is None and not sets:
-        return {}
-    reg = registry_or_error()
-    from humanoid_twin import params as P  # noqa: N812
-
-    values: dict[str, float] = {}
-    if path is not None:
-        values.update(_wrap(P.load_params_file, path))
-    for text in sets:
-        values.update(_wrap(P.parse_set, text))
-    return dict(_wrap(reg.check, values))
 
 
 @dataclass(frozen=True)
