@@ -53,7 +53,8 @@ def add_compare_parsers(sub: Any) -> None:
     cal.add_argument("--jobs", type=int, default=0, help="parallel rollouts (default: the cores)")
     cal.add_argument("--backend", choices=("local", "ray"), default="local",
                      help="where rollouts run: local processes (default) or a Ray cluster")
-    cal.add_argument("--max-evaluations", type=int, default=200, help="evaluations at most (default 200)")
+    cal.add_argument("--max-evaluations", type=int, default=200,
+                     help="the fit's budget of evaluations (about: whole iterations; default 200)")
     cal.add_argument("--signals", default="position_deg,current,force_counts,imu_counts",
                      help="signal groups in the residual (default: all but speed)")
     cal.add_argument("--smooth", type=float, default=1.0, metavar="S",
