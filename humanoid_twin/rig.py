@@ -29,8 +29,8 @@ a file open; the first error is raised once all are closed.
 
 from __future__ import annotations
 
-from collections.abc import Callable
-from dataclasses import dataclass
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -85,6 +85,9 @@ class RigOptions:
     # The ground-truth monitor behind fell / trunk tilt / CoP margin / CoP error. Off only for
     # scripts/bench.py, which times the twin itself (like recording, it is instrumentation).
     monitor: bool = True
+    # the robot's named parameters (humanoid_twin/params.py, docs/parameters.md): name -> value,
+    # the ones that differ from their defaults (empty: today's twin); ``--params`` / ``--set``
+    params: Mapping[str, float] = field(default_factory=dict)
 
     def replay_meta(self) -> dict[str, Any]:
         """What a replay of this rig's RS-232 traffic needs to build the same twin (the serial
@@ -107,6 +110,10 @@ class RigOptions:
             meta["tilt"] = self.tilt
         if self.pic_mhz != DEFAULT_PIC_MHZ:
             meta["pic_mhz"] = self.pic_mhz
+        if self.params:
+            from humanoid_twin.params import non_defaults
+
+            meta["params"] = non_defaults(self.params)
         return meta
 
     @classmethod
@@ -124,9 +131,20 @@ class RigOptions:
                        supervisor=None if sup is None else SupervisorConfig(**sup),
                        laws=tuple((ctype, ref) for ctype, ref in meta.get("laws", ())),
                        tilt=float(meta.get("tilt", 0.0)),
-                       pic_mhz=float(meta.get("pic_mhz", DEFAULT_PIC_MHZ)), monitor=False)
+                       pic_mhz=float(meta.get("pic_mhz", DEFAULT_PIC_MHZ)), monitor=False,
+                       params=_meta_params(meta.get("params", {})))
         except (FaultSpecError, TypeError, ValueError) as exc:
             raise ValueError(f"the options in its meta cannot be read back: {exc}") from None
+
+
+def _meta_params(values: Any) -> dict[str, float]:
+    """A log's recorded parameters, checked against this version's registry (``ParamError``, a
+    ``ValueError``, when one is unknown or out of bounds)."""
+    from humanoid_twin.params import ParamError, registry
+
+    if not isinstance(values, dict):
+        raise ParamError(f"params must be a table of name -> value, got {values!r}")
+    return registry().check(values)
 
 
 class ScenarioError(RuntimeError):
@@ -198,7 +216,7 @@ class Rig:
         self.host_error: str | None = None
         self.end_s: float | None = None
         self.twin = Twin(seed=opts.seed, can_interface=opts.can_interface, can_channel=opts.can_channel,
-                         supervisor=opts.supervisor, pic_mhz=opts.pic_mhz)
+                         supervisor=opts.supervisor, pic_mhz=opts.pic_mhz, params=opts.params)
         try:
             self._assemble(opts, expected_s, on_twin, on_progress)
         except BaseException:
@@ -221,7 +239,7 @@ class Rig:
         if opts.can_log is not None:
             from humanoid_twin.recording import CanLog
 
-            self.canlog = CanLog(opts.can_log, twin.network, name=opts.can_log_name)
+            self.canlog = CanLog(opts.can_log, twin.network, name=opts.can_log_name, params=twin.params)
         if opts.serial_log is not None:
             from humanoid_twin.bus.serial_log import SerialLog
 

@@ -21,6 +21,7 @@ from __future__ import annotations
 import hashlib
 import importlib
 import importlib.util
+import math
 import sys
 import time
 from collections.abc import Callable
@@ -42,6 +43,7 @@ from humanoid_twin.host.planners import (
     empty_plan,
     flexao,
     inclinar,
+    leg_pose,
     levantar_perna,
     with_control,
 )
@@ -131,6 +133,9 @@ class RunOptions(RigOptions):
     # wall seconds the run may take (None: unbounded); beyond it the run ends with ScenarioError,
     # its files closed (``run --wall-timeout``, sweep's ``--timeout``)
     wall_timeout: float | None = None
+    # a user scenario's own dataclass fields, name -> value (``--set scenario.FIELD=VALUE``,
+    # sweep's ``--param scenario.FIELD=...``): :func:`with_fields`
+    scenario_fields: dict[str, Any] = field(default_factory=dict)
 
 
 _BALANCE_TYPES = (ControlType.REACTION_CONTROL, ControlType.BALANCE_CONTROL)
@@ -239,7 +244,7 @@ def get_scenario(name: str) -> Scenario:
 
 DEFAULT_T_S = 1.0           # the planners' default motion period (``--T``)
 # the planners' default angle (``--motion``, degrees) per scenario; ``--help`` shows them
-DEFAULT_MOTION_DEG = {"flexao": 20.0, "inclinar": 10.0, "levantar_perna": 40.0}
+DEFAULT_MOTION_DEG = {"flexao": 20.0, "inclinar": 10.0, "levantar_perna": 40.0, "excite": 6.0}
 # ``stand``: the vertical posture, both feet down, BALANCE_CONTROL on the leg boards and
 # LOCOMOTION_CONTROL on the hips. In double support the two legs must not run the same law
 # (they fight through the pelvis, docs/balance.md): the right leg leads (its foot front joint
@@ -293,6 +298,57 @@ def _levantar_perna(T: float | None, motion: float | None, perna: int) -> Plan:
     n = len(t)
     single = tuple(m in BALANCE_MOTIONS for m in range(n))   # the other foot is up
     return Plan(pos, k, t, lead=(support,) * n, single=single)
+
+
+# ``excite`` (beyond the seeds, docs/calibration.md): the motion whose CAN log determines the
+# servo and sensor parameters (``humanoid-twin calibrate``). Both feet stay down all along.
+EXCITE_SHIFT_T = 0.75                   # each weight shift's period, times T (``--T``, default 1 s)
+EXCITE_CHIRP = (0.75, 0.45, 0.3, 0.2)   # the squat chirp's half periods, times T
+EXCITE_SHIFT = 1.5                    # the weight shift's lean, times the amplitude
+EXCITE_STEP_S = 0.1                   # a joint's step: 5 PWM periods up, 5 back ...
+EXCITE_HOLD_S = 0.2                   # ... then held (the step response settles)
+EXCITE_JOINTS = ("ankle_roll", "ankle_pitch", "knee", "hip_roll", "hip_pitch")
+
+
+def excite_plan(T: float, amplitude: float) -> Plan:
+    """The excitation motion: (1) the weight shifted from foot to foot (the ``inclinar`` pose,
+    ``EXCITE_SHIFT`` x ``amplitude``, each way and back, ``EXCITE_SHIFT_T`` x ``T`` each);
+    (2) a squat chirp (the ``flexao`` pose of ``amplitude``, down and up with half periods
+    ``EXCITE_CHIRP`` x ``T``); (3) a step of ``amplitude / 2`` on each leg joint of each leg in
+    turn (up and back in ``EXCITE_STEP_S``, held ``EXCITE_HOLD_S``). LOCOMOTION_CONTROL on the
+    legs and hips; every angle within the planners' limits (``amplitude`` 1..10 deg)."""
+    a = float(amplitude)
+    if not 1.0 <= a <= 10.0:
+        raise ValueError(f"excite: --motion (the amplitude) must be 1..10 degrees, got {amplitude!r}")
+    poses: list[tuple[dict[int, dict[str, float]], float]] = []
+    shift = EXCITE_SHIFT * a
+    for lean in (shift, 0.0, -shift, 0.0):
+        poses.append(({side: {"hip_roll": -lean, "ankle_roll": lean} for side in (0, 1)}, EXCITE_SHIFT_T * T))
+    for half in EXCITE_CHIRP:
+        squat = {"hip_pitch": -a, "knee": 2 * a, "ankle_pitch": -a}
+        poses.append(({0: squat, 1: squat}, half * T))
+        poses.append(({0: {}, 1: {}}, half * T))
+    for side in (0, 1):
+        for joint in EXCITE_JOINTS:
+            poses.append(({side: {joint: a / 2}}, EXCITE_STEP_S))
+            poses.append(({}, EXCITE_STEP_S))
+            poses.append(({}, EXCITE_HOLD_S))
+    pos, k, t = empty_plan(len(poses))
+    for m, (legs, period) in enumerate(poses):
+        for side in (0, 1):
+            leg_pose(pos, m, side, **legs.get(side, {}))
+        for scu in LEG_SCUS:
+            k[scu - 1, :, m] = control_row(ControlType.LOCOMOTION_CONTROL)
+        t[m] = period
+    return Plan(pos, k, t)
+
+
+@scenario("excite", double_support=True)
+def _excite(T: float | None, motion: float | None, perna: int) -> Plan:
+    """excitation for calibrate: weight shift foot to foot, a squat chirp, a step on each leg joint;
+    --motion = amplitude (deg), --T = time scale"""
+    amplitude = DEFAULT_MOTION_DEG["excite"] if motion is None else motion
+    return excite_plan(DEFAULT_T_S if T is None else T, amplitude)
 
 
 SCENARIOS: tuple[str, ...] = tuple(REGISTRY)   # the built-in scenarios, in registration order
@@ -407,6 +463,60 @@ def _import(ref: str, where: str) -> Any:
         raise ScenarioLoadError(f"scenario {ref!r}: cannot import {where}: {describe(exc)}") from None
 
 
+SCENARIO_FIELD_PREFIX = "scenario."     # --set scenario.FIELD=VALUE: a user scenario's own field
+_FIELD_TYPES = (bool, int, float, str)
+
+
+def own_fields(spec: Scenario) -> dict[str, Any]:
+    """A user scenario's own dataclass fields (those its class adds to :class:`Scenario`) and
+    their values; a built-in scenario has none."""
+    import dataclasses
+
+    base = {f.name for f in dataclasses.fields(Scenario)}
+    return {f.name: getattr(spec, f.name) for f in dataclasses.fields(spec) if f.name not in base}
+
+
+def with_fields(spec: Scenario, values: dict[str, Any]) -> Scenario:
+    """``spec`` with some of its own fields (:func:`own_fields`) replaced; a text value is read as
+    the field's current type (int, float, bool, str). :class:`ScenarioInputError` (one line) for a
+    field it does not have or a value of the wrong kind."""
+    import dataclasses
+
+    if not values:
+        return spec
+    mine = own_fields(spec)
+    changes: dict[str, Any] = {}
+    for name, value in values.items():
+        if name not in mine:
+            have = ", ".join(sorted(mine)) or "none"
+            raise ScenarioInputError(f"scenario {spec.name} has no field {name!r} of its own "
+                                     f"(its fields: {have})")
+        current = mine[name]
+        kind = type(current)
+        if not isinstance(current, _FIELD_TYPES):
+            raise ScenarioInputError(f"scenario.{name}: a {kind.__name__} field cannot be set from the "
+                                     "command line (int, float, bool, str fields can)")
+        changes[name] = _field_value(name, kind, value)
+    return dataclasses.replace(spec, **changes)
+
+
+def _field_value(name: str, kind: type, value: Any) -> Any:
+    if not isinstance(value, str):
+        return value
+    text = value.strip()
+    try:
+        if kind is bool:
+            if text.lower() not in ("true", "false", "1", "0"):
+                raise ValueError(text)
+            return text.lower() in ("true", "1")
+        v = kind(text)
+        if kind is float and not math.isfinite(v):
+            raise ValueError(text)
+        return v
+    except ValueError:
+        raise ScenarioInputError(f"scenario.{name}={value!r}: not a {kind.__name__}") from None
+
+
 def scenario_name(ref: str | Scenario) -> str:
     """How a run names its scenario (the summary's ``scenario``): the name or reference as given,
     or a Scenario object's ``name``."""
@@ -504,7 +614,8 @@ def run(opts: RunOptions, on_progress: Callable[[float, float | None], None] | N
     ``on_progress(t_s, end_s)`` is called every 0.1 s of virtual time: ``end_s`` is None during
     the boot (its length is not known in advance), then the run's end time. ``on_twin(twin)`` is
     called once the twin is built, before anything is written (``run --viewer`` attaches there)."""
-    spec, label = load_scenario(opts.scenario), scenario_name(opts.scenario)
+    spec = with_fields(load_scenario(opts.scenario), opts.scenario_fields)
+    label = scenario_name(opts.scenario)
     the_plan = run_plan(spec, opts)
     motion_s = spec.motion_s(the_plan)
     host_step = load_host_controller(opts.host_controller) if opts.host_controller is not None else None
@@ -606,6 +717,7 @@ __all__ = ["RunOptions", "outcome", "SLIP_HELD_MM", "SUMMARY_KEYS", "summary_key
            "NO_SUPPORT_MARGIN_MM",
            "Plan", "Scenario", "REGISTRY", "scenario", "get_scenario", "load_scenario", "scenario_name",
            "ENTRY_POINT_GROUP", "boot", "hold", "BootError", "ScenarioError", "ScenarioInputError",
-           "ScenarioLoadError", "SCENARIOS", "CONTROL_CHOICES", "plan", "run", "run_plan", "tilt_profile",
+           "ScenarioLoadError", "SCENARIOS", "with_fields", "own_fields", "SCENARIO_FIELD_PREFIX",
+           "CONTROL_CHOICES", "plan", "run", "run_plan", "tilt_profile",
            "expected_run_s",
            "Rig", "RigOptions", "BOOT_TIMEOUT_S", "TILT_RATE_DEG_S", "SETTLE_S", "BOOT_MIN_S"]

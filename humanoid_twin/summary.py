@@ -11,6 +11,7 @@ import numpy as np
 
 from humanoid_twin.cycles import DEFAULT_PIC_MHZ
 from humanoid_twin.faults import FaultSpec
+from humanoid_twin.params import params_digest
 from humanoid_twin.protocol.wire import ControlType
 from humanoid_twin.twin import Twin
 
@@ -51,6 +52,11 @@ def build_summary(rig: Rig, scenario: str, plan: Plan, *, completed: bool, wall_
         "control": _control_label(plan),
         "control_law": _law_label(twin, plan),
         "seed": opts.seed,
+    }
+    if twin.params:     # the named parameters that differ from their defaults (none: every default)
+        summary["params"] = dict(twin.params)
+        summary["params_digest"] = params_digest(twin.params)
+    summary |= {
         "mode": sup.mode_name,
         **rig.report.summary(),
         "faults": [f.as_dict() for f in sup.faults],
@@ -130,6 +136,10 @@ SUMMARY_KEYS: dict[str, str] = {
     "control_law": "the law that ran each of those types on the leg boards, `type=Class` (built-in), "
                    "or `type=module:Class` (a `--law` plug-in, docs/controllers.md)",
     "seed": "the run's seed",
+    "params": "only when a named parameter differs from its default (`--params FILE.toml`, `--set "
+              "NAME=VALUE`, docs/parameters.md): those parameters, name -> value",
+    "params_digest": "only with `params`: 16 hex digits of SHA-256 of them (sorted JSON); two runs "
+                     "with the same digest ran with the same numbers",
     "mode": "the Master supervisor's mode at the end (`ready`; `safe` or `estop`: exit code 3; "
             "docs/supervisor.md)",
     "task_load_max": "`{\"slaves\": F, \"master\": F}`: the largest fraction of its 20 ms period "

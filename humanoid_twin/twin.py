@@ -10,7 +10,7 @@ The same host code drives a real robot: only the pyserial URL changes.
 from __future__ import annotations
 
 import itertools
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from pathlib import Path
 
 import serial
@@ -45,15 +45,26 @@ class Twin:
         name: str | None = None,
         supervisor: SupervisorConfig | None = None,
         pic_mhz: float = DEFAULT_PIC_MHZ,
+        params: Mapping[str, float] | None = None,
+        master: bool = True,
     ) -> None:
         self.seed = seed
-        self.pic_mhz = pic_mhz          # the Slaves' clock (the Master's: DEFAULT_PIC_MHZ, docs/firmware.md)
         self.clock = Clock()
-        # physics time is the clock's: the plant steps itself before any read or write
-        self.plant = Plant(model_path, seed=seed, clock=self.clock)
+        # physics time is the clock's: the plant steps itself before any read or write. ``params``
+        # (humanoid_twin/params.py): the plant takes the model's and the sensors' (checked there)
+        self.plant = Plant(model_path, seed=seed, clock=self.clock, params=params)
+        # the Slaves' clock (the Master's: DEFAULT_PIC_MHZ, docs/firmware.md): the parameter
+        # pic_mhz when given, else the argument
+        self.pic_mhz = pic_mhz = self.plant.params.get("pic_mhz", pic_mhz)
+        # the non-default parameters this twin runs with (what every output records)
+        self.params: dict[str, float] = dict(sorted(
+            {**self.plant.params, **({"pic_mhz": pic_mhz} if pic_mhz != DEFAULT_PIC_MHZ else {})}.items()))
         self.network = CanNetwork(self.clock, interface=can_interface, channel=can_channel)
         self.link = SerialLink(self.clock)
-        self.master = Master(self.clock, self.network, self.link, supervisor)
+        # ``master=False``: no Master board on the wire; something else stands in for it (a CAN
+        # log's player: humanoid_twin/compare/, ``humanoid-twin compare``)
+        self.master: Master | None = (Master(self.clock, self.network, self.link, supervisor)
+                                      if master else None)
         # Slave PWM periods are not synchronised on the robot: each board starts its 20 ms
         # period at its own phase, drawn from the seed (docs/firmware.md).
         self.phases_us: dict[int, int] = dict(zip(SCUS, _phases(seed), strict=True))

@@ -13,7 +13,7 @@ from humanoid_twin.scenarios import REGISTRY, SCENARIOS, Plan, RunOptions, Scena
 
 
 def test_the_cli_choices_are_the_registry_with_stand_first():
-    assert SCENARIOS == ("stand", "flexao", "inclinar", "levantar_perna") == tuple(REGISTRY)
+    assert SCENARIOS == ("stand", "flexao", "inclinar", "levantar_perna", "excite") == tuple(REGISTRY)
     assert not REGISTRY["stand"].moves and all(REGISTRY[n].moves for n in SCENARIOS[1:])
     with pytest.raises(ScenarioError, match="unknown scenario 'walk'.*stand, flexao"):
         scenarios.plan("walk")

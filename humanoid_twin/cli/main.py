@@ -184,6 +184,13 @@ def build_parser() -> argparse.ArgumentParser:
     from humanoid_twin.cli.sweep import add_sweep_parser
 
     add_sweep_parser(sub)   # its other options are run's (main passes them through)
+    from humanoid_twin.cli.params import add_params_parser
+
+    add_params_parser(sub)  # humanoid-twin params [show FILE | diff A B] (docs/parameters.md)
+
+    from humanoid_twin.cli.compare import add_compare_parsers
+
+    add_compare_parsers(sub)    # compare, calibrate (cli/compare.py)
 
     view = sub.add_parser("view", help="open a recording in the rerun viewer",
                           description="Open FILE.rrd in the rerun viewer (same as `rerun FILE.rrd`).")
@@ -355,7 +362,9 @@ def check_run_inputs(args: argparse.Namespace, load: bool = True) -> dict[str, A
     if args.duration is not None and args.duration < BOOT_MIN_S:
         raise _usage_error(f"--duration {args.duration:g} is shorter than the boot (the Slaves calibrate for "
                            f"{BOOT_MIN_S:g} s; the boot takes ~2.65 simulated seconds): give at least that")
-    spec = load_scenario_arg(args.scenario)
+    from humanoid_twin.cli.params import scenario_with_fields
+
+    spec = scenario_with_fields(load_scenario_arg(args.scenario), args)    # --set scenario.FIELD=V
     where = "plan"
     try:   # the planners' own limits (T fits one byte of 20 ms ticks, each joint's range ...)
         plan = spec.plan(args.T, args.motion, args.perna)
@@ -617,6 +626,25 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     return sweep_command(args, build_parser())
 
 
+def _cmd_compare(args: argparse.Namespace) -> int:
+    from humanoid_twin.cli.compare import cmd_compare
+
+    return cmd_compare(args)
+
+
+def _cmd_calibrate(args: argparse.Namespace) -> int:
+    from humanoid_twin.cli.compare import cmd_calibrate
+
+    return cmd_calibrate(args)
+
+
+def cmd_params(args: argparse.Namespace) -> int:
+    """``humanoid-twin params``: the named parameters (cli/params.py, docs/parameters.md)."""
+    from humanoid_twin.cli.params import cmd_params as params_command
+
+    return params_command(args)
+
+
 def _warn_stale_core() -> None:
     """One line on stderr when, in a source tree, a compiled module is older than its source."""
     from humanoid_twin.core import PURE_PYTHON_ENV, stale_modules
@@ -643,7 +671,8 @@ def main(argv: list[str] | None = None) -> int:
             parser.error(f"unrecognized arguments: {' '.join(extra)}")
         args.run_args = extra
         _warn_stale_core()
-        handler = {"run": cmd_run, "serve": cmd_serve, "view": cmd_view, "sweep": cmd_sweep}[args.command]
+        handler = {"run": cmd_run, "serve": cmd_serve, "view": cmd_view, "sweep": cmd_sweep,
+                   "params": cmd_params, "compare": _cmd_compare, "calibrate": _cmd_calibrate}[args.command]
         return handler(args)
     except Exception as exc:
         # a signal that landed in an extension module's import comes out wrapped (ImportError)

@@ -85,6 +85,9 @@ def add_rig_options(p: argparse.ArgumentParser, out_help: str) -> None:
                    "board phases)")
     add_can_options(p)
     add_fault_options(p)
+    from humanoid_twin.cli.params import add_params_options
+
+    add_params_options(p)       # --params FILE.toml, --set NAME=VALUE (docs/parameters.md)
     p.add_argument("--law", action="append", default=[], metavar="TYPE=MODULE:CLASS",
                    help="run your firmware control law for one control type (none, locomotion, reaction, "
                    "balance) on every Slave; MODULE:CLASS or an entry point of group humanoid_twin.laws; "
@@ -113,10 +116,12 @@ def check_rig_inputs(args: argparse.Namespace, load: bool = True) -> dict[str, A
     and the ``--law`` s (imported and made once). Returns the loaded controllers (the
     ``laws``, and ``run``'s ``host_controller`` and ``host_period_ms``; ``load`` False: not
     loaded again, nothing returned)."""
+    from humanoid_twin.cli.params import params_from_args
     from humanoid_twin.fault_compose import check_composition
     from humanoid_twin.faults import FaultSpecError
     from humanoid_twin.plant.plant import TILT_MAX_DEG
 
+    args.param_values = params_from_args(args)     # --params, --set: the named parameters
     try:
         check_composition(args.fault)
     except FaultSpecError as exc:
@@ -208,7 +213,7 @@ def rig_fields(args: argparse.Namespace, controllers: dict[str, Any]) -> dict[st
 
     return dict(seed=args.seed, tilt=args.tilt, can_interface=args.can_interface,
                 can_channel=args.can_channel, faults=tuple(args.fault), supervisor=supervisor_config(args),
-                laws=controllers["laws"], pic_mhz=args.pic_mhz)
+                laws=controllers["laws"], pic_mhz=args.pic_mhz, params=args.param_values)
 
 
 def run_options(args: argparse.Namespace, controllers: dict[str, Any], files: dict[str, Any]) -> Any:
@@ -222,4 +227,5 @@ def run_options(args: argparse.Namespace, controllers: dict[str, Any], files: di
         T=args.T, motion=args.motion, perna=args.perna,
         control=args.control, progress=not args.no_progress, host_controller=controllers["host_controller"],
         host_period_ms=controllers["host_period_ms"], wall_timeout=args.wall_timeout,
+        scenario_fields=dict(vars(args).get("scenario_fields") or {}),
     )

@@ -17,9 +17,9 @@ from humanoid_twin.sweep.engine import (
     RunCli,
     _key_value,
     check_backend,
-    grid,
     run_sweep,
 )
+from humanoid_twin.sweep.params import is_set_name, randomized_grid, run_arg
 from humanoid_twin.sweep.table import SweepError, read_table, table_format
 
 # run options a sweep sets itself, or that would make every run write the same file
@@ -42,7 +42,12 @@ def add_sweep_parser(sub: Any) -> argparse.ArgumentParser:
                    help="the scenario to run: a built-in one, FILE.py:NAME or MODULE:NAME (as run's)")
     p.add_argument("--param", action="append", default=[], metavar="NAME=V1,V2,...",
                    help="a run option (its flag without dashes: tilt, T, motion, perna, control, fault, "
-                   "seed ...) and its values; repeat for a grid")
+                   "seed ...), a named parameter (humanoid-twin params; a glob sets every match) or "
+                   "scenario.FIELD (a scenario of yours' own field), and its values; repeat for a grid")
+    p.add_argument("--randomize", action="append", default=[], metavar="NAME=uniform(A,B)|normal(MU,SIGMA)",
+                   help="draw a named parameter for each of --samples runs (seeded; docs/parameters.md); "
+                   "repeatable")
+    p.add_argument("--samples", type=count, metavar="N", help="--randomize: how many robots to draw")
     p.add_argument("--seeds", type=count, default=1, metavar="N", help="seeds 0..N-1 (default 1)")
     p.add_argument("--jobs", type=count, metavar="N", help="runs at a time (default: the cores here; "
                    "ray: the CPUs of the local Ray)")
@@ -128,7 +133,11 @@ def plan_sweep(args: argparse.Namespace, parser: argparse.ArgumentParser
             seeds = [int(v) for v in params.pop("seed")]
         except ValueError:
             raise SweepError("--param seed: seeds are whole numbers") from None
+    args.draws = _randomize(args)          # --randomize ... --samples N: the drawn values
     for name, values in params.items():
+        if is_set_name(name):              # a named parameter or a scenario's field: --set NAME=V
+            _check_set_param(name, values)
+            continue
         dest = name.replace("-", "_")
         if dest not in base or dest in NOT_PARAMS:
             options = sorted(d.replace("_", "-") for d in base if d not in NOT_PARAMS)
@@ -138,7 +147,7 @@ def plan_sweep(args: argparse.Namespace, parser: argparse.ArgumentParser
             raise SweepError(f"--{name} is given both as a run option and as --param {name}")
         for v in values:      # run's own checks, one line and exit 2 on a bad value
             parser.parse_args(["run", args.scenario, "--no-record", *run_args, f"--{name}={v}"])
-    n_points = len(seeds)
+    n_points = len(seeds) * max(1, len(args.draws))
     for values in params.values():
         n_points *= len(values)
     if n_points > MAX_POINTS:
@@ -173,7 +182,8 @@ def plan_sweep(args: argparse.Namespace, parser: argparse.ArgumentParser
         _writable_dir(args.plot, "--plot")
         if args.metric is None or args.x is None:
             raise SweepError("--plot needs --metric KEY and --x PARAM")
-        if args.x not in params and args.x != "seed":
+        if args.x not in params and args.x != "seed" and not any(r.split("=")[0].strip() == args.x
+                                                                  for r in args.randomize):
             given = " ".join(params) or "it has no --param"
             raise SweepError(f"--x {args.x}: not a --param of this sweep ({given})")
     elif args.metric is not None or args.x is not None:
@@ -193,14 +203,47 @@ def _check_every_point(args: argparse.Namespace, parser: argparse.ArgumentParser
 
     names = list(params)
     loaded: set[tuple] = set()
+    drawn = [run_arg(n, v) for n, v in (args.draws[0] if args.draws else ())]   # the first robot drawn
     for i, values in enumerate(itertools.product(*(params[n] for n in names))):
         for seed in seeds if i == 0 else seeds[:1]:
-            argv = ["run", args.scenario, "--no-record", *run_args,
-                    *(f"--{n}={v}" for n, v in zip(names, values, strict=True)), f"--seed={seed}"]
+            argv = ["run", args.scenario, "--no-record", *run_args, *drawn,
+                    *(run_arg(n, v) for n, v in zip(names, values, strict=True)), f"--seed={seed}"]
             ns = parser.parse_args(argv)
             key = (tuple(ns.law), ns.host_controller)
             check_run_inputs(ns, load=key not in loaded)    # a --law / --host-controller loaded once
             loaded.add(key)
+
+
+def _check_set_param(name: str, values: list[str]) -> None:
+    """A ``--param`` that is a named parameter: its name (or glob) and every value checked
+    (``scenario.FIELD``: checked with each grid point, by run's own checks)."""
+    from humanoid_twin.params import ParamError, registry
+    from humanoid_twin.sweep.params import SCENARIO_PREFIX
+
+    if name.startswith(SCENARIO_PREFIX):
+        return
+    try:
+        for v in values:
+            registry().check({name: v})
+    except ParamError as exc:
+        raise SweepError(f"--param {name}: {exc}") from None
+
+
+def _randomize(args: argparse.Namespace) -> list[tuple[tuple[str, float], ...]]:
+    """``--randomize`` with ``--samples N``: the N drawn robots (sweep/params.py)."""
+    from humanoid_twin.sweep.params import draw_samples, parse_randomize
+
+    if not args.randomize:
+        if args.samples is not None:
+            raise SweepError("--samples N goes with --randomize NAME=uniform(A,B)|normal(MU,SIGMA)")
+        return []
+    if args.samples is None:
+        raise SweepError("--randomize needs --samples N (how many robots to draw)")
+    randomized = parse_randomize(args.randomize)
+    clash = [r.name for r in randomized if r.name in parse_params(args.param)]
+    if clash:
+        raise SweepError(f"{clash[0]} is given both as --param and as --randomize")
+    return draw_samples(randomized, args.samples)
 
 
 def _check_is_sweep_table(path: Path, rows: list[dict[str, Any]]) -> None:
@@ -251,7 +294,7 @@ def sweep_command(args: argparse.Namespace, parser: argparse.ArgumentParser) -> 
         return 2
     if args.recordings is not None:
         args.recordings.mkdir(parents=True, exist_ok=True)
-    points = grid(params, seeds)
+    points = randomized_grid(params, args.draws, seeds)     # the grid x the drawn robots x the seeds
     progress = None if args.no_progress else sys.stderr
     if progress is not None:
         where = args.address or "a local Ray" if args.backend == "ray" else "this machine"

@@ -43,7 +43,7 @@ class TrunkImu:
     on the same MjData (it reads the MuJoCo sensors)."""
 
     def __init__(self, model: mujoco.MjModel, seed: np.random.SeedSequence,
-                 front_end: SensorFrontEnd) -> None:
+                 front_end: SensorFrontEnd, bias: tuple[float, float, float, float] | None = None) -> None:
         def adr(kind: str) -> int:
             for s in range(model.nsensor):
                 if int(model.sensor_type[s]) == int(getattr(mujoco.mjtSensor, kind)) and \
@@ -55,6 +55,9 @@ class TrunkImu:
         self._gyro = adr("mjSENS_GYRO")
         self._seed = seed
         self._front = front_end
+        # the sensors' biases (deg, deg, deg/s, deg/s; the parameters imu.*_bias_*), added to
+        # their input; None: none (the input as it is)
+        self._bias = bias
         self.reset()
 
     def reset(self) -> None:
@@ -71,6 +74,8 @@ class TrunkImu:
     def read(self, t_us: int) -> list[int]:
         """The four 8-bit ADC counts (``hardware.IMU_SENSOR_NAMES`` order) at physics time ``t_us``."""
         x = self.true_attitude()
+        if self._bias is not None:
+            x = tuple(v + b for v, b in zip(x, self._bias, strict=True))
         s = self._state
         if s is None:
             s = self._state = list(x)

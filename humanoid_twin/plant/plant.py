@@ -19,7 +19,7 @@ from __future__ import annotations
 import math
 import numbers
 import sys
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from importlib import resources
 from pathlib import Path
 from typing import Any
@@ -45,6 +45,8 @@ DEFAULT_MODEL_NAME = "scene.xml"
 DEFAULT_MODEL = Path(str(MODELS / DEFAULT_MODEL_NAME))   # where it is on disk (an installed package)
 
 PAD_SUFFIXES: tuple[str, str, str, str] = ("fl", "fr", "rl", "rr")   # table 12 order
+HOLD_LIFT_MM = 100.0               # compare --support stand: the trunk held this high above its stand pose
+HOLD_ARMATURE = 1e9                # ... by an armature that makes its free joint immovable
 TILT_MAX_DEG = 45.0                # the platform tilts at most this far (either way)
 _TILT_MAX_DEG = TILT_MAX_DEG
 _TILT_PROFILE_CHUNK_US = 10_000    # a tilt profile is re-evaluated at least every 10 ms
@@ -67,14 +69,23 @@ def _warn_on_stderr(message: str) -> None:
     sys.stderr.write(f"humanoid-twin: MuJoCo warning: {' '.join(message.split())}\n")
 
 
-def _load_model(path: Path | None) -> tuple[mujoco.MjModel, list[str]]:
+def _load_model(path: Path | None, params: Mapping[str, float] | None = None
+                ) -> tuple[mujoco.MjModel, list[str]]:
+    """The model at ``path`` (None: the packaged one) as it is, or, with ``params`` (the model's
+    non-default parameters, plant/model_params.py), edited through ``MjSpec`` before compiling."""
     if path is not None and not path.is_file():
         raise PlantError(f"MuJoCo model file not found: {path}")
     warnings: list[str] = []
     previous = mujoco.get_mju_user_warning()
     mujoco.set_mju_user_warning(warnings.append)
     try:
-        if path is None:
+        if params:
+            from humanoid_twin.plant.model_params import apply_to_spec, packaged_spec
+
+            spec = packaged_spec() if path is None else mujoco.MjSpec.from_file(str(path))
+            apply_to_spec(spec, params)
+            model = spec.compile()
+        elif path is None:
             xml = (MODELS / DEFAULT_MODEL_NAME).read_text(encoding="utf-8")
             model = mujoco.MjModel.from_xml_string(xml, assets=model_assets())
         else:
@@ -93,15 +104,34 @@ class Plant(BoardIO):
     keyframe with every PWM off (limp servos, as at power-up). ``seed`` fixes the potentiometer
     offsets (drawn once per plant) and the sensor noise streams (restarted by ``reset``).
     ``clock`` (or ``bind_clock``) puts physics time under the twin's clock: the plant then steps
-    itself before any access.
+    itself before any access. ``params``: named parameters (humanoid_twin/params.py, names or
+    globs -> values; :class:`~humanoid_twin.params.ParamError` on a bad one): the model's set
+    through ``MjSpec`` before it is compiled, the sensors' on their electronics; none (or every
+    one at its default): the packaged model exactly as it is. :attr:`params` keeps the
+    non-default ones.
     """
 
-    def __init__(self, model_path: str | Path | None = None, *, seed: int = 0, clock: Any = None) -> None:
+    def __init__(self, model_path: str | Path | None = None, *, seed: int = 0, clock: Any = None,
+                 params: Mapping[str, float] | None = None) -> None:
         _route_mujoco_warnings()
         given = Path(model_path) if model_path is not None else None
         path = given if given is not None else DEFAULT_MODEL
         self.model_path = path
-        self.model, self.load_warnings = _load_model(given)
+        self.params: dict[str, float] = {}
+        by_kind: dict[str, dict[str, float]] = {}       # kind -> target -> value (the non-defaults)
+        model_values: dict[str, float] = {}             # the model's own: set through MjSpec
+        if params:
+            from humanoid_twin.params import registry
+            from humanoid_twin.plant.model_params import MODEL_KINDS
+
+            reg = registry()
+            self.params = reg.non_defaults(reg.check(params))
+            for name, v in self.params.items():
+                p = reg.get(name)
+                by_kind.setdefault(p.kind, {})[p.target] = v
+                if p.kind in MODEL_KINDS:
+                    model_values[name] = v
+        self.model, self.load_warnings = _load_model(given, model_values)
         self.data = mujoco.MjData(self.model)
         self.seed = int(seed)
         m = self.model
@@ -184,6 +214,17 @@ class Plant(BoardIO):
             scu: tuple(hardware.POT_B_NOMINAL_DEG + float(o) for o in offsets[scu - 1])  # type: ignore[misc]
             for scu in hardware.SERVO_JOINTS
         }
+        pot_offsets = by_kind.get("pot.offset_deg", {})     # pot.JOINT.offset_deg: added to the draw
+        if pot_offsets:
+            for scu, joints in hardware.SERVO_JOINTS.items():
+                self.pot_b_true_deg[scu] = tuple(  # type: ignore[assignment]
+                    b + pot_offsets.get(j, 0.0)
+                    for b, j in zip(self.pot_b_true_deg[scu], joints, strict=True))
+        gains, zeros = by_kind.get("fsr.gain", {}), by_kind.get("fsr.offset_counts", {})
+        for site in {*gains, *zeros}:                      # fsr.SITE.gain / offset_counts
+            s = need(mujoco.mjtObj.mjOBJ_SENSOR, f"{site}_touch")
+            self._sense.set_force_calibration(int(m.sensor_adr[s]), gains.get(site, 1.0),
+                                              zeros.get(site, 0.0))
         self._tilt_deg = 0.0
         self._tilt_profile: Callable[[float], float] | None = None
         # injected faults (humanoid_twin/faults.py, docs/supervisor.md): extra force noise,
@@ -191,7 +232,9 @@ class Plant(BoardIO):
         self._force_fault = False
         self._force_noise_counts = 0
         self._force_fault_rng = np.random.default_rng(ss.spawn(1)[0])
-        self._imu = TrunkImu(m, ss.spawn(1)[0], self._sense)     # the body board's inclinometer and gyroscope
+        # the body board's inclinometer and gyroscope, with their biases (imu.*_bias_*)
+        bias = tuple(by_kind.get(f"imu.{b}", {}).get("", 0.0) for b in _IMU_BIASES)
+        self._imu = TrunkImu(m, ss.spawn(1)[0], self._sense, bias=bias if any(bias) else None)
         self._force_stuck: dict[int, list[int] | None] = {}
         self._stuck_actuators: set[int] = set()
         self.reset()
@@ -400,6 +443,23 @@ class Plant(BoardIO):
         self.data.xfrc_applied[self._trunk, :] = 0.0
         self.data.xfrc_applied[self._trunk, 0] = f
 
+    def hold_trunk(self, lift_mm: float = HOLD_LIFT_MM) -> None:
+        """Hold the trunk in the air, as on a test stand (``compare --support stand``): the trunk
+        is raised by ``lift_mm`` (the feet clear the floor) and its free joint given an armature of
+        :data:`HOLD_ARMATURE` (kg, kg.m2) on each of its six degrees of freedom, so that whatever
+        the legs do the trunk does not move (its acceleration is the forces over 1e9: under a
+        micrometre in a minute). Call before the first step; it stays held."""
+        self._sync()
+        m, d = self.model, self.data
+        j = int(m.body_jntadr[self._trunk])
+        if j < 0 or m.jnt_type[j] != mujoco.mjtJoint.mjJNT_FREE:
+            raise PlantError("hold_trunk: the model's trunk has no free joint")
+        q, v = int(m.jnt_qposadr[j]), int(m.jnt_dofadr[j])
+        m.dof_armature[v:v + 6] = HOLD_ARMATURE
+        d.qpos[q + 2] += float(lift_mm) / 1000.0
+        d.qvel[v:v + 6] = 0.0
+        mujoco.mj_forward(m, d)
+
     def servo_angle_deg(self, scu: int, i: int) -> float:
         """True shaft angle of servo ``i`` (0..2) of ``scu``, servo frame, degrees (ground truth)."""
         self._sync()
@@ -530,5 +590,7 @@ _RAD_PER_US = math.radians(1.0) / hardware.PULSE_US_PER_DEG
 _PULSE_MIN_US = hardware.pulse_from_deg(-POS_LIMIT_DEG)
 _PULSE_MAX_US = hardware.pulse_from_deg(POS_LIMIT_DEG)
 _FOOT_INDEX = {foot: f for f, foot in enumerate(FOOT_BODIES)}
+# the IMU's bias parameters (imu.NAME), in TrunkImu's order
+_IMU_BIASES = ("roll_bias_deg", "pitch_bias_deg", "roll_rate_bias_dps", "pitch_rate_bias_dps")
 _SIDES = {"r": "r_foot", "right": "r_foot", "r_foot": "r_foot",
           "l": "l_foot", "left": "l_foot", "l_foot": "l_foot"}

@@ -19,12 +19,19 @@ cdef class SensorFrontEnd:
     cdef const double[::1] _qvel
     cdef const double[::1] _force
     cdef const double[::1] _sensordata
+    cdef double[::1] _fscale
+    cdef double[::1] _foffset
+    cdef long long[::1] _fzero
+    cdef bint _has_offset
+
+    @cython.locals(v=cython.long)
+    cpdef set_force_calibration(self, long adr, double gain, double offset_counts)
 
     @cython.locals(i=cython.long, qadr=cython.long, dadr=cython.long, a=cython.long, sign=cython.long,
                    stall=cython.double, damping=cython.double, deg=cython.double, x=cython.double, v=cython.long,
                    torque=cython.double, load=cython.double, w=cython.long, adc=list, cur=list)
     cpdef tuple servos(self, tuple rows, tuple b_true, list powered, list noise)
-    @cython.locals(k=cython.long, f=cython.double, x=cython.double, v=cython.long, out=list)
+    @cython.locals(k=cython.long, adr=cython.long, f=cython.double, x=cython.double, v=cython.long, out=list)
     cpdef list forces(self, tuple adrs, list noise)
     @cython.locals(w=cython.double, x=cython.double, y=cython.double, z=cython.double,
                    roll=cython.double, s=cython.double, pitch=cython.double)

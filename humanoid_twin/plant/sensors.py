@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import math
 import time
+from array import array
 from typing import Any
 
 import mujoco
@@ -79,6 +80,24 @@ class SensorFrontEnd:
         self._qvel = qvel
         self._force = actuator_force
         self._sensordata = sensordata
+        n = len(sensordata)
+        # each force sensor's counts per newton, zero offset (counts) and unloaded reading, by its
+        # sensordata address: the named parameters fsr.SITE.gain / offset_counts
+        # (set_force_calibration; by default COUNTS_PER_N, 0, 0: the readings of every other day)
+        self._fscale = array("d", [_COUNTS]) * n
+        self._foffset = array("d", [0.0]) * n
+        self._fzero = array("q", [0]) * n
+        self._has_offset = False
+
+    def set_force_calibration(self, adr: int, gain: float, offset_counts: float) -> None:
+        """The force sensor at ``sensordata[adr]`` reads ``F * COUNTS_PER_N * gain +
+        offset_counts`` (+ noise, rounded, clamped), and ``offset_counts`` (rounded, clamped) when
+        unloaded: its ``fsr.SITE.gain`` and ``fsr.SITE.offset_counts`` (humanoid_twin/params.py)."""
+        self._fscale[adr] = _COUNTS * gain
+        self._foffset[adr] = offset_counts
+        v = round_half_even(offset_counts)
+        self._fzero[adr] = 0 if v < 0 else (_FORCE_ADC_MAX if v > _FORCE_ADC_MAX else v)
+        self._has_offset = self._has_offset or offset_counts != 0.0
 
     def servos(self, rows: tuple[tuple[int, int, int, int, float, float], ...], b_true: tuple[float, ...],
                powered: list[bool], noise: list[float]) -> tuple[list[int], list[int]]:
@@ -114,11 +133,14 @@ class SensorFrontEnd:
         sd = self._sensordata
         out: list[int] = []
         for k in range(4):
-            f = float(sd[adrs[k]])
+            adr = adrs[k]
+            f = float(sd[adr])
             if f <= 0.0:
-                out.append(0)
+                out.append(self._fzero[adr])
                 continue
-            x = f * _COUNTS + noise.pop()
+            x = f * self._fscale[adr] + noise.pop()
+            if self._has_offset:
+                x += self._foffset[adr]
             v = round_half_even(x) if _COMPILED else round(x)
             out.append(0 if v < 0 else (_FORCE_ADC_MAX if v > _FORCE_ADC_MAX else v))
         return out

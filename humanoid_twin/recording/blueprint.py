@@ -8,7 +8,7 @@ sensors, CoP and balance, bus counters, and the upper-body boards.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 import rerun as rr
@@ -85,11 +85,38 @@ def log_keys(rec: Any) -> None:
     rec.log(JOINT_KEY, rr.TextDocument(JOINT_KEY_TEXT, media_type=rr.MediaType.MARKDOWN), static=True)
 
 
+PARAMS = "params"       # the run's non-default named parameters (docs/parameters.md), a text document
+
+
+def params_markdown(params: Mapping[str, float]) -> str:
+    """The Parameters tab's text: the non-default parameters, one row each."""
+    from humanoid_twin.params import params_digest, registry
+
+    reg = registry()
+    lines = [f"Parameters that differ from their defaults (docs/parameters.md); digest "
+             f"`{params_digest(params)}`.", "", "| name | value | default | unit |", "|---|---|---|---|"]
+    for name, v in params.items():
+        p = reg.get(name)
+        lines.append(f"| `{name}` | {v:g} | {p.default:g} | {p.unit} |")
+    return "\n".join(lines) + "\n"
+
+
+def log_params(rec: Any, params: Mapping[str, float]) -> None:
+    """The run's non-default parameters into recording ``rec``: a recording property ``params``
+    (name -> value; rerun's recording properties) and the Parameters tab's static text."""
+    from humanoid_twin.params import params_digest
+
+    rec.send_property(PARAMS, rr.AnyValues(**{name: float(v) for name, v in params.items()},
+                                           params_digest=params_digest(params)))
+    rec.log(PARAMS, rr.TextDocument(params_markdown(params), media_type=rr.MediaType.MARKDOWN), static=True)
+
+
 def default_blueprint(
-    scus: Sequence[int] = SCUS, master_entities: Sequence[str] = ()
+    scus: Sequence[int] = SCUS, master_entities: Sequence[str] = (), params: bool = False
 ) -> rrb.Blueprint:
     """The blueprint sent with every recording (see docs/recording.md, "Blueprint");
-    ``master_entities``: the ``master/...`` counter entities, one plot each."""
+    ``master_entities``: the ``master/...`` counter entities, one plot each; ``params``: a
+    Parameters tab (a run with non-default parameters, :func:`log_params`)."""
     legs = [s for s in LEG_SCUS if s in scus]
     upper = [s for s in scus if s not in LEG_SCUS]
     feet = [s for s in scus if s in FOOT_OF_SCU]
@@ -213,6 +240,8 @@ def default_blueprint(
     tabs += [counters, supervisor, boards]
     if upper:
         tabs.append(_joint_grid(upper, "Upper body"))
+    if params:
+        tabs.append(rrb.TextDocumentView(origin=PARAMS, name="Parameters"))
     return rrb.Blueprint(
         rrb.Horizontal(left, rrb.Tabs(*tabs), column_shares=[2, 3]),
         rrb.TimePanel(timeline="sim_time", state="collapsed"),

@@ -18,10 +18,11 @@ the twin's virtual times as they are.
 
 from __future__ import annotations
 
+import json
 import pathlib
 import threading
 import time
-from collections.abc import Iterator
+from collections.abc import Iterator, Mapping
 from typing import TYPE_CHECKING, Any, NamedTuple
 
 import can
@@ -138,7 +139,8 @@ class CanLog:
     twin's clock started).
     """
 
-    def __init__(self, path: str | pathlib.Path, network: Any, name: str | None = None) -> None:
+    def __init__(self, path: str | pathlib.Path, network: Any, name: str | None = None,
+                 params: Mapping[str, float] | None = None) -> None:
         self.path = pathlib.Path(path)
         suffix = check_log_path(self.path)
         if not hasattr(network, "add_listener"):
@@ -155,6 +157,8 @@ class CanLog:
             # These writers store times relative to their first event: anchor that at virtual
             # time 0 so the file holds the twin's virtual times, not "since the first frame".
             writer.log_event("humanoid-twin: timestamps are virtual seconds of the twin's clock", 0.0)
+            if params:      # the named parameters that differ from their defaults (docs/parameters.md)
+                writer.log_event(f"humanoid-twin params: {json.dumps(dict(params), sort_keys=True)}", 0.0)
         if isinstance(writer, can.TRCWriter):
             # its header names the file by its absolute path: the file's own name instead (``name``:
             # the final one, when ``path`` is a temporary file renamed at the end)

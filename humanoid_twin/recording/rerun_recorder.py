@@ -52,7 +52,7 @@ from humanoid_twin.clock import US_PER_S
 from humanoid_twin.hardware import FOOT_OF_SCU, N_SPECIAL_SENSORS, PWM_PERIOD_US
 from humanoid_twin.plant.plant import WXYZ_TO_XYZW
 from humanoid_twin.protocol.wire import SCUS
-from humanoid_twin.recording.blueprint import default_blueprint, log_keys
+from humanoid_twin.recording.blueprint import default_blueprint, log_keys, log_params
 from humanoid_twin.recording.columns import (
     BLUE,
     RED,
@@ -208,7 +208,8 @@ class Recorder:
         self.compact = compact and path is not None
         self.path = None if path is None else _check_path(path)   # the last check, the first thing created
         self.rec = rr.RecordingStream(app_id, recording_id=uuid.uuid4())
-        bp = default_blueprint(self.scus, self._master_paths) if blueprint else None
+        self.params: dict[str, float] = dict(getattr(twin, "params", None) or {})   # non-default parameters
+        bp = default_blueprint(self.scus, self._master_paths, params=bool(self.params)) if blueprint else None
         try:
             # compact: no footer while recording (rerun's file sink keeps the footer's index of
             # every chunk in memory until the end: RSS grew ~0.13 MB per simulated second with
@@ -372,6 +373,8 @@ class Recorder:
         rec = self.rec
         log_static(rec, self.twin.plant, self._body_names, self._feet)
         log_keys(rec)
+        if self.params:
+            log_params(rec, self.params)
         styles: dict[tuple, rr.SeriesLines] = {}     # one archetype per style (many columns share one)
         for c in self.columns:
             key: tuple | None = (c.names, c.colors)

@@ -15,6 +15,7 @@ from pathlib import Path
 from typing import Any, TextIO
 
 from humanoid_twin import signals
+from humanoid_twin.sweep.params import run_arg
 from humanoid_twin.sweep.table import SweepError, cell, read_table, table_format, write_table
 
 BACKENDS = ("local", "ray")
@@ -100,7 +101,7 @@ class RunCli:
 
     def argv(self, point: Point) -> list[str]:
         argv = [sys.executable, "-m", "humanoid_twin.cli.main", "run", self.scenario, *self.run_args]
-        argv += [f"--{name}={value}" for name, value in point.params]
+        argv += [run_arg(name, value) for name, value in point.params]   # --set NAME=V: a named parameter
         argv += [f"--seed={point.seed}", "--json", "--no-progress"]
         if self.timeout is not None:     # the run ends itself, files closed (run --wall-timeout)
             argv.append(f"--wall-timeout={self.timeout:g}")

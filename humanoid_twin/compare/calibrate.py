@@ -1,0 +1,331 @@
+"""``humanoid-twin calibrate``: fit the twin's named parameters to robot CAN logs.
+
+The residual is ``compare``'s (humanoid_twin/compare/core.py): for every value of every Sensors
+frame of every training log, (twin - log) divided by the signal's quantum (1 degree, one count),
+over the chosen signal groups; its length is fixed by the logs (a frame the twin did not send
+holds the twin's last value). The fit is a bounded least-squares problem on it, solved with
+MuJoCo's system-identification toolbox (``mujoco.sysid``: its ``Parameter``/``ParameterDict``
+hold the unknowns and their bounds, ``optimize`` runs MuJoCo's bounded Levenberg-Marquardt
+``mujoco.minimize.least_squares``, ``calculate_intervals`` gives the 95 % intervals from the
+Jacobian). Where ``mujoco.sysid`` would roll the MuJoCo model out itself, the twin's rollout is
+used instead: firmware, buses and plant, one :func:`~humanoid_twin.compare.core.compare_log` per
+log and evaluation (in-process, no interpreter start), and the Jacobian's finite differences
+are evaluated in parallel (local processes, or Ray with ``--backend ray``), with steps of a few
+percent of each parameter (the measurements are whole degrees and counts: an infinitesimal step
+changes nothing). docs/calibration.md says where and why.
+
+A parameter the logs do not determine (its 95 % interval wider than half its bounds, or its
+Jacobian column near zero) is ``identifiable: false``: its value stays where the fit started,
+it is not written to ``--out``, and the output names the motion that would determine it.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import sys
+import time
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from humanoid_twin.compare.core import CompareOptions, CompareResult, compare_log
+from humanoid_twin.compare.fitparams import Unknown
+from humanoid_twin.compare.robot_log import RobotLog
+from humanoid_twin.compare.signals import GROUPS
+
+__all__ = ["FitProblem", "FitResult", "fit", "motion_for", "DEFAULT_GROUPS", "REL_STEP", "BOUND_STEP",
+           "ZERO_COLUMN"]
+
+DEFAULT_GROUPS: tuple[str, ...] = ("position_deg", "current", "force_counts", "imu_counts")
+REL_STEP = 0.03          # finite-difference step: 3 % of the value ...
+BOUND_STEP = 0.005       # ... and at least 0.5 % of the parameter's range
+MU_FACTOR = 10.0         # the LM regulariser's growth after a step that did not reduce the residual
+ZERO_COLUMN = 1e-9       # a Jacobian column below this norm (quanta per unit) determines nothing
+
+# the motion that determines a kind of parameter (Param.kind of humanoid_twin/params.py)
+MOTIONS: dict[str, str] = {
+    "servo": "steps and chirps of that joint under load (the excite scenario: run excite)",
+    "pot": "a pose measured by another reference: the boards' calibration takes a potentiometer's "
+           "offset into b (seed 000 calibration), so only a joint moved with PWM off or against a stop "
+           "shows it",
+    "fsr": "the weight shifted onto that foot and off it (excite's weight shift, inclinar)",
+    "floor": "a motion in which a foot slips (the platform tilted past the friction cone: "
+             "run stand --tilt 30)",
+    "body": "motions that load the joints below that body (flexao, excite's weight shift, levantar_perna)",
+    "imu": "the trunk held still at known angles (run stand, or excite's weight shift)",
+    "pic_mhz": "a control law whose cycles come close to the 2 ms PWM window (docs/firmware.md)",
+}
+
+
+def motion_for(name: str) -> str:
+    """The kind of motion that determines parameter ``name``."""
+    head = name.split(".", 1)[0]
+    return MOTIONS.get(head, "a motion in which this parameter changes the measured signals")
+
+
+# -- one evaluation: the twin against every log ----------------------------------------------------
+@dataclass
+class FitProblem:
+    """What an evaluation needs: the logs, the unknowns, the fixed values, the twin's options."""
+
+    logs: list[RobotLog]
+    unknowns: list[Unknown]
+    base: dict[str, float] = field(default_factory=dict)
+    seed: int = 0
+    support: str = "floor"
+    groups: tuple[str, ...] = DEFAULT_GROUPS
+    window: int = 1          # frames each signal's residual is averaged over (--smooth)
+
+    def values(self, x: Sequence[float]) -> dict[str, float]:
+        """The parameters of point ``x``: the fixed ones, then each unknown's names."""
+        out = dict(self.base)
+        for u, v in zip(self.unknowns, x, strict=True):
+            for name in u.names:
+                out[name] = float(v)
+        return out
+
+    def run(self, x: Sequence[float], logs: Sequence[RobotLog] | None = None) -> list[CompareResult]:
+        opts = CompareOptions(seed=self.seed, support=self.support, params=self.values(x))
+        return [compare_log(log, opts) for log in (self.logs if logs is None else logs)]
+
+    def residual(self, x: Sequence[float]) -> np.ndarray:
+        """The stacked residual of every log at ``x`` (quanta)."""
+        return np.concatenate([r.residual_vector(self.groups, self.window) for r in self.run(x)])
+
+
+_WORKER: FitProblem | None = None
+
+
+def _init_worker(problem: FitProblem) -> None:
+    global _WORKER
+    _WORKER = problem
+    os.environ.setdefault("OMP_NUM_THREADS", "1")
+
+
+def _worker_residual(x: Sequence[float]) -> np.ndarray:
+    assert _WORKER is not None
+    return _WORKER.residual(x)
+
+
+class _Evaluator:
+    """Residuals at one or several points: in-process (``jobs`` 1), local processes, or Ray."""
+
+    def __init__(self, problem: FitProblem, jobs: int, backend: str,
+                 progress: Callable[[str], None]) -> None:
+        self.problem = problem
+        self.jobs = max(1, jobs)
+        self.backend = backend
+        self.progress = progress
+        self.evaluations = 0
+        self.best = math.inf
+        self._pool: Any = None
+        self._ray_actors: list[Any] = []
+        if self.jobs > 1 and backend == "local":
+            import multiprocessing
+            from concurrent.futures import ProcessPoolExecutor
+
+            ctx = multiprocessing.get_context("fork" if sys.platform.startswith("linux") else "spawn")
+            self._pool = ProcessPoolExecutor(self.jobs, mp_context=ctx, initializer=_init_worker,
+                                             initargs=(problem,))
+        elif backend == "ray":
+            import ray
+
+            if not ray.is_initialized():
+                ray.init(num_cpus=self.jobs, include_dashboard=False, log_to_driver=False,
+                         configure_logging=False)
+            actor = ray.remote(_RayWorker)
+            self._ray_actors = [actor.remote(problem) for _ in range(self.jobs)]
+
+    def many(self, xs: Sequence[np.ndarray]) -> list[np.ndarray]:
+        if self._pool is not None and len(xs) > 1:
+            out = list(self._pool.map(_worker_residual, [np.asarray(x, float) for x in xs]))
+        elif self._ray_actors:
+            import ray
+
+            refs = [self._ray_actors[i % len(self._ray_actors)].residual.remote(np.asarray(x, float))
+                    for i, x in enumerate(xs)]
+            out = ray.get(refs)
+        else:
+            out = [self.problem.residual(x) for x in xs]
+        for r in out:
+            self.evaluations += 1
+            cost = float(np.sqrt(np.mean(r * r))) if r.size else 0.0
+            self.best = min(self.best, cost)
+            self.progress(f"calibrate: evaluation {self.evaluations}: residual {cost:.4f} "
+                          f"(best {self.best:.4f}) quanta RMS")
+        return out
+
+    def close(self) -> None:
+        if self._pool is not None:
+            self._pool.shutdown(cancel_futures=True)
+        if self._ray_actors:
+            import ray
+
+            for a in self._ray_actors:
+                ray.kill(a)
+            self._ray_actors = []
+
+
+class _RayWorker:
+    def __init__(self, problem: FitProblem) -> None:
+        self.problem = problem
+
+    def residual(self, x: np.ndarray) -> np.ndarray:
+        return self.problem.residual(x)
+
+
+def _steps(unknowns: Sequence[Unknown], x: np.ndarray) -> np.ndarray:
+    return np.array([max(REL_STEP * abs(v), BOUND_STEP * (u.hi - u.lo))
+                     for u, v in zip(unknowns, x, strict=True)])
+
+
+def _jacobian(ev: _Evaluator, unknowns: Sequence[Unknown], x: np.ndarray, r: np.ndarray) -> np.ndarray:
+    """Forward differences (backward at an upper bound), every column in parallel."""
+    h = _steps(unknowns, x)
+    pts = []
+    signed = []
+    for i, u in enumerate(unknowns):
+        step = h[i] if x[i] + h[i] <= u.hi else -h[i]
+        p = x.copy()
+        p[i] += step
+        pts.append(p)
+        signed.append(step)
+    cols = ev.many(pts)
+    J = np.empty((r.size, len(unknowns)))
+    for i, (c, step) in enumerate(zip(cols, signed, strict=True)):
+        J[:, i] = (c - r) / step
+    return J
+
+
+# -- the fit ------------------------------------------------------------------------------------
+@dataclass
+class FitResult:
+    """What ``calibrate`` reports (``as_dict``: the ``--json`` object, outputs aside)."""
+
+    fitted: dict[str, dict[str, Any]]
+    values: dict[str, float]              # the params file: fixed values and identified ones
+    residual_before: float
+    residual_after: float
+    validation_before: float | None
+    validation_after: float | None
+    evaluations: int
+    wall_s: float
+    before: list[CompareResult]
+    after: list[CompareResult]
+    val_before: list[CompareResult]
+    val_after: list[CompareResult]
+
+    def as_dict(self) -> dict[str, Any]:
+        return {"fitted": self.fitted, "params": self.values, "residual_before": self.residual_before,
+                "residual_after": self.residual_after, "validation_before": self.validation_before,
+                "validation_after": self.validation_after, "evaluations": self.evaluations,
+                "wall_s": round(self.wall_s, 3)}
+
+
+def _rms(r: np.ndarray) -> float:
+    return float(np.sqrt(np.mean(r * r))) if r.size else 0.0
+
+
+def _norm(results: Sequence[CompareResult], groups: Sequence[str], window: int = 1) -> float:
+    return _rms(np.concatenate([r.residual_vector(groups, window) for r in results]))
+
+
+def fit(problem: FitProblem, *, validate: Sequence[RobotLog] = (), jobs: int = 1, backend: str = "local",
+        max_evaluations: int = 200, progress: Callable[[str], None] | None = None) -> FitResult:
+    """Fit ``problem``'s unknowns (see the module's docstring); ``validate``: logs kept apart."""
+    from humanoid_twin.plant.sysid import toolbox
+
+    sysid = toolbox()
+    say = progress or (lambda text: None)
+    t0 = time.perf_counter()
+    unknowns = problem.unknowns
+    params = sysid.ParameterDict({u.label: sysid.Parameter(u.label, u.default, u.lo, u.hi) for u in unknowns})
+    x0 = params.as_vector()
+    ev = _Evaluator(problem, jobs, backend, say)
+    try:
+        before = problem.run(x0)
+        r0 = np.concatenate([r.residual_vector(problem.groups, problem.window) for r in before])
+        ev.evaluations += len(problem.logs) and 1
+        say(f"calibrate: start: residual {_rms(r0):.4f} quanta RMS over {r0.size} values, "
+            f"{len(unknowns)} unknowns")
+        budget = {"left": max_evaluations}
+
+        def residual_fn(x: np.ndarray, _params: Any) -> tuple[list[np.ndarray], None, None]:
+            x = np.asarray(x, dtype=float)
+            cols = x.reshape(len(unknowns), -1)
+            outs = ev.many([cols[:, k] for k in range(cols.shape[1])])
+            budget["left"] -= len(outs)
+            return [np.stack(outs, axis=1) if x.ndim == 2 else outs[0]], None, None
+
+        def jacobian(x: np.ndarray, r: np.ndarray) -> np.ndarray:
+            xv = np.asarray(x, dtype=float).reshape(-1)
+            budget["left"] -= len(unknowns)
+            return _jacobian(ev, unknowns, xv, np.asarray(r, dtype=float).reshape(-1))
+
+        max_iters = max(1, budget["left"] // (len(unknowns) + 2))
+        opt, _ = _optimize(sysid, params, residual_fn, jacobian, max_iters, _steps(unknowns, x0))
+        x = np.clip(opt.as_vector(), [u.lo for u in unknowns], [u.hi for u in unknowns])
+        after = problem.run(x)
+        r1 = np.concatenate([r.residual_vector(problem.groups, problem.window) for r in after])
+        ev.evaluations += 1
+        J = _jacobian(ev, unknowns, x, r1)
+        _, half = sysid.calculate_intervals([r1], J)
+    finally:
+        ev.close()
+    fitted: dict[str, dict[str, Any]] = {}
+    values = dict(problem.base)
+    col_norm = np.linalg.norm(J, axis=0) if J.size else np.zeros(len(unknowns))
+    for i, u in enumerate(unknowns):
+        hw = float(half[i]) if i < len(half) else math.inf
+        ok = math.isfinite(hw) and 2 * hw <= (u.hi - u.lo) / 2 and col_norm[i] > ZERO_COLUMN
+        entry: dict[str, Any] = {"value": float(x[i]) if ok else u.default, "start": u.default,
+                                 "ci95": [float(x[i]) - hw, float(x[i]) + hw] if ok else None,
+                                 "identifiable": bool(ok)}
+        if len(u.names) > 1:
+            entry["tied"] = list(u.names)
+        if not ok:
+            entry["needs"] = motion_for(u.names[0])
+        else:
+            for name in u.names:
+                values[name] = float(x[i])
+        fitted[u.label] = entry
+    # the unidentified keep their start: the after-fit residual is that of the values written
+    if any(not e["identifiable"] for e in fitted.values()):
+        x_written = np.array([e["value"] for e in fitted.values()])
+        after = problem.run(x_written)
+    val_before = problem.run(x0, validate) if validate else []
+    val_after = problem.run(np.array([e["value"] for e in fitted.values()]), validate) if validate else []
+    g, w = problem.groups, problem.window
+    return FitResult(fitted=fitted, values=values, residual_before=_norm(before, g, w),
+                     residual_after=_norm(after, g, w),
+                     validation_before=_norm(val_before, g, w) if validate else None,
+                     validation_after=_norm(val_after, g, w) if validate else None,
+                     evaluations=ev.evaluations, wall_s=time.perf_counter() - t0, before=before, after=after,
+                     val_before=val_before, val_after=val_after)
+
+
+def _optimize(sysid: Any, params: Any, residual_fn: Callable, jacobian: Callable, max_iters: int,
+              scale: np.ndarray) -> tuple[Any, Any]:
+    """``mujoco.sysid.optimize`` with MuJoCo's bounded least squares, the twin's Jacobian."""
+    return sysid.optimize(params, residual_fn, optimizer="mujoco", verbose=False, jacobian=jacobian,
+                          max_iters=max_iters, x_scale=scale, output=sys.stderr, mu_factor=MU_FACTOR)
+
+
+def groups_arg(text: str) -> tuple[str, ...]:
+    """``--signals`` (comma-separated group names)."""
+    out = tuple(t.strip() for t in text.split(",") if t.strip())
+    bad = [g for g in out if g not in GROUPS]
+    if bad or not out:
+        raise ValueError(f"--signals {text!r}: groups are {', '.join(GROUPS)}")
+    return out
+
+
+def write_params_toml(path: Any, values: Mapping[str, float], header: str) -> None:
+    """A params file: one ``"name" = value`` line per parameter, after ``# header`` lines."""
+    lines = [f"# {line}" for line in header.splitlines()]
+    lines += [f'"{name}" = {float(v)!r}' for name, v in values.items()]
+    with open(path, "w", encoding="utf-8") as fh:
+        fh.write("\n".join(lines) + "\n")
