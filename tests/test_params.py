@@ -214,8 +214,8 @@ def test_params_command_lists_shows_and_diffs(tmp_path: Path) -> None:
     r = cli("params", "show", str(a), "--json")
     assert json.loads(r.stdout) == {"servo.r_knee.kp": 40.0, "servo.l_knee.kp": 40.0}
     r = cli("params", "diff", str(a), str(b), "--json")
-    assert json.loads(r.stdout) == {"floor.friction": {"a": 1.0, "b": 0.5},
-                                    "servo.l_knee.kp": {"a": 40.0, "b": registry().get("servo.l_knee.kp").default}}
+    kp = registry().get("servo.l_knee.kp").default
+    assert json.loads(r.stdout) == {"floor.friction": {"a": 1.0, "b": 0.5}, "servo.l_knee.kp": {"a": 40.0, "b": kp}}
     r = cli("params", "show", str(tmp_path / "none.toml"))
     assert r.returncode == 2 and r.stderr.count("\n") == 1 and "no such file" in r.stderr
 
@@ -227,7 +227,8 @@ def weak_knee_run(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, dict]
     d = tmp_path_factory.mktemp("weak")
     (d / "weak.toml").write_text('"servo.*_knee.kp" = 30\n"floor.friction" = 0.7\n')
     r = cli("run", "flexao", "--duration", "4", "--params", "weak.toml", "--set", "servo.l_knee.kp=35",
-            "--out", "w.rrd", "--can-log", "w.asc", "--serial-log", "w.serial", "--json", "--no-progress", cwd=d)
+            "--out", "w.rrd", "--can-log", "w.asc", "--serial-log", "w.serial", "--json", "--no-progress",
+            cwd=d)
     assert r.returncode == 0, r.stderr
     return d, json.loads(r.stdout)
 
@@ -286,7 +287,8 @@ def test_a_replay_rebuilds_the_same_twin(weak_knee_run: tuple[Path, dict]) -> No
     (["--params", "broken.toml"], "not TOML"),
     (["--pic-mhz", "20", "--set", "pic_mhz=10"], "disagree"),
 ])
-def test_bad_input_is_one_line_exit_2_and_nothing_replaced(tmp_path: Path, args: list[str], message: str) -> None:
+def test_bad_input_is_one_line_exit_2_and_nothing_replaced(tmp_path: Path, args: list[str],
+                                                           message: str) -> None:
     (tmp_path / "broken.toml").write_text("[x\n")
     (tmp_path / "out.rrd").write_bytes(b"keep me")
     r = cli("run", "flexao", "--out", "out.rrd", "--can-log", "c.asc", *args, cwd=tmp_path)
