@@ -215,7 +215,8 @@ def test_params_command_lists_shows_and_diffs(tmp_path: Path) -> None:
     assert json.loads(r.stdout) == {"servo.r_knee.kp": 40.0, "servo.l_knee.kp": 40.0}
     r = cli("params", "diff", str(a), str(b), "--json")
     kp = registry().get("servo.l_knee.kp").default
-    assert json.loads(r.stdout) == {"floor.friction": {"a": 1.0, "b": 0.5}, "servo.l_knee.kp": {"a": 40.0, "b": kp}}
+    assert json.loads(r.stdout) == {"floor.friction": {"a": 1.0, "b": 0.5},
+                                    "servo.l_knee.kp": {"a": 40.0, "b": kp}}
     r = cli("params", "show", str(tmp_path / "none.toml"))
     assert r.returncode == 2 and r.stderr.count("\n") == 1 and "no such file" in r.stderr
 
