@@ -488,9 +488,8 @@ def with_fields(spec: Scenario, values: dict[str, Any]) -> Scenario:
     changes: dict[str, Any] = {}
     for name, value in values.items():
         if name not in mine:
-            have = ", ".join(sorted(mine)) or "none"
-            raise ScenarioInputError(f"scenario {spec.name} has no field {name!r} of its own "
-                                     f"(its fields: {have})")
+            have = f"its fields: {', '.join(sorted(mine))}" if mine else "it has no field of its own"
+            raise ScenarioInputError(f"scenario {spec.name} has no field {name!r} of its own ({have})")
         current = mine[name]
         kind = type(current)
         if not isinstance(current, _FIELD_TYPES):

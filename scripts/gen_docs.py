@@ -7,6 +7,7 @@ Each block sits between ``<!-- generated: NAME -->`` and ``<!-- end generated: N
 
 - ``summary-keys`` in docs/scenarios.md: the run summary's keys (``summary.SUMMARY_KEYS``).
 - ``fault-kinds`` in docs/supervisor.md: the ``--fault`` kinds (``faults.KINDS``).
+- ``parameters`` in docs/parameters.md: every named parameter (``params.registry()``).
 
 docs/fault_matrix.md is the output of ``scripts/fault_matrix.py --seed 0 --out docs/fault_matrix.md``
 (48 runs; tests/test_docs.py checks its text and cells against the script, re-runs a sample of
@@ -36,9 +37,16 @@ def _fault_kinds() -> str:
     return kinds_markdown()
 
 
+def _parameters() -> str:
+    from humanoid_twin.params import params_markdown
+
+    return params_markdown()
+
+
 BLOCKS: dict[str, tuple[Path, Callable[[], str]]] = {
     "summary-keys": (ROOT / "docs" / "scenarios.md", _summary_keys),
     "fault-kinds": (ROOT / "docs" / "supervisor.md", _fault_kinds),
+    "parameters": (ROOT / "docs" / "parameters.md", _parameters),
 }
 
 

@@ -62,7 +62,6 @@ def plant_params() -> tuple[Param, ...]:
     """The plant's parameters, defaults read from the packaged model (once per process)."""
     spec = packaged_spec()
     out: list[Param] = []
-    servo = ("HS-805BB servo, humanoid.xml's default class (docs/model.md)")
     for j in _servo_joints():
         act, joint = spec.actuator(f"{j}_act"), spec.joint(j)
         kp, stall = float(act.gainprm[0]), float(act.forcerange[1])
@@ -70,15 +69,15 @@ def plant_params() -> tuple[Param, ...]:
         friction, armature = float(joint.frictionloss), float(joint.armature)
         rows = (
             ("kp", "N·m/rad", kp, 0.0, _bound(SCALE_MAX * kp),
-             f"{j}'s servo position gain (stall torque at 3 deg of error; {servo})"),
+             f"{j}: servo position gain, the stall torque at 3 deg of error (models/README.md section 5)"),
             ("damping", "N·m·s/rad", damping, 0.0, _bound(SCALE_MAX * damping),
-             f"{j}'s gear and back-EMF damping ((stall - friction) / no-load speed; {servo})"),
+             f"{j}: gear and back-EMF damping, (stall - friction) / no-load speed (HS-805BB datasheet)"),
             ("frictionloss", "N·m", friction, 0.0, _bound(SCALE_MAX * friction),
-             f"{j}'s gear-train dry friction (estimate, ~8 % of stall; {servo})"),
+             f"{j}: gear-train dry friction (estimate, ~8 % of the stall torque)"),
             ("armature", "kg·m²", armature, 0.0, _bound(SCALE_MAX * armature),
-             f"{j}'s reflected rotor inertia (estimate; {servo})"),
+             f"{j}: the motor's rotor inertia seen at the joint (estimate)"),
             ("torque_max", "N·m", stall, _bound(SCALE_MIN * stall), _bound(SCALE_MAX * stall),
-             f"{j}'s stall torque, the actuator's force range (HS-805BB datasheet: 24.7 kg·cm at 6 V)"),
+             f"{j}: stall torque, the servo's force range (HS-805BB datasheet: 24.7 kg·cm at 6 V)"),
         )
         for field, unit, default, lo, hi, doc in rows:
             out.append(Param(f"servo.{j}.{field}", unit, default, lo, hi, doc, kind=f"servo.{field}",
