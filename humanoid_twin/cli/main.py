@@ -9,6 +9,7 @@ The command line is a contract (scripts and CI depend on it; docs/scenarios.md):
                         [--serial-log FILE] [--viewer | --connect [ADDR]]
                         [--law ...] [--fault ...] [--tilt DEG] [--seed N]
     humanoid-twin view FILE.rrd
+    humanoid-twin replay FILE [--out FILE.rrd] [--can-log FILE] [--seed N] [--law ...] [--json]
 
 SCENARIO: a built-in one, or the user's (FILE.py:NAME, MODULE:NAME, an entry point's name).
 The options ``run`` and ``serve`` share are defined and checked once (cli/options.py).
@@ -184,6 +185,10 @@ def build_parser() -> argparse.ArgumentParser:
     from humanoid_twin.cli.sweep import add_sweep_parser
 
     add_sweep_parser(sub)   # its other options are run's (main passes them through)
+
+    from humanoid_twin.cli.replay import add_replay_parser
+
+    add_replay_parser(sub)
 
     view = sub.add_parser("view", help="open a recording in the rerun viewer",
                           description="Open FILE.rrd in the rerun viewer (same as `rerun FILE.rrd`).")
@@ -617,6 +622,13 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     return sweep_command(args, build_parser())
 
 
+def cmd_replay(args: argparse.Namespace) -> int:
+    """``humanoid-twin replay``: a serial log into the twin it describes (cli/replay.py)."""
+    from humanoid_twin.cli.replay import replay_command
+
+    return replay_command(args, _Outputs())
+
+
 def _warn_stale_core() -> None:
     """One line on stderr when, in a source tree, a compiled module is older than its source."""
     from humanoid_twin.core import PURE_PYTHON_ENV, stale_modules
@@ -643,7 +655,8 @@ def main(argv: list[str] | None = None) -> int:
             parser.error(f"unrecognized arguments: {' '.join(extra)}")
         args.run_args = extra
         _warn_stale_core()
-        handler = {"run": cmd_run, "serve": cmd_serve, "view": cmd_view, "sweep": cmd_sweep}[args.command]
+        handler = {"run": cmd_run, "serve": cmd_serve, "view": cmd_view, "sweep": cmd_sweep,
+                   "replay": cmd_replay}[args.command]
         return handler(args)
     except Exception as exc:
         # a signal that landed in an extension module's import comes out wrapped (ImportError)
