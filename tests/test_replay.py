@@ -267,3 +267,15 @@ def test_the_replay_records_as_a_run_does(plain: Path, tmp_path: Path, capsys) -
     code, _, err = _cli(["replay", str(plain), "--out", str(tmp_path / "r.txt")], capsys)
     assert code == 2 and ".rrd" in err
     assert sorted(p.name for p in tmp_path.iterdir()) == ["r.asc", "r.rrd"]
+
+
+def test_an_output_that_is_the_log_itself_is_refused(plain: Path, tmp_path: Path, capsys) -> None:
+    """``replay run.log --can-log run.log`` (.log is a python-can format): the CAN log was renamed
+    over the serial log it replayed (exit 0, the log lost)."""
+    log = tmp_path / "run.log"
+    log.write_bytes(plain.read_bytes())
+    (tmp_path / "link.log").symlink_to(log)
+    for argv in (["--can-log", str(log)], ["--can-log", str(tmp_path / "link.log")]):
+        code, out, err = _cli(["replay", str(log), *argv], capsys)
+        assert code == 2 and out == "" and "is the log being replayed" in err, err
+        assert log.read_bytes() == plain.read_bytes()

@@ -52,6 +52,24 @@ def add_replay_parser(sub: Any) -> None:
     p.set_defaults(serial_log=None)      # the outputs' shared code knows a run's three
 
 
+def _check_not_the_log(args: argparse.Namespace) -> None:
+    """An output is not the log being replayed (``--can-log run.log`` of ``run.log``: the CAN log
+    would be renamed over it at the end)."""
+    import os
+
+    for flag, path in (("--out", args.out), ("--can-log", args.can_log)):
+        if path is None:
+            continue
+        same = path.expanduser().resolve() == args.file.expanduser().resolve()
+        if not same and path.exists() and args.file.exists():
+            try:
+                same = os.path.samefile(path, args.file)
+            except OSError:
+                pass
+        if same:
+            raise usage_error(f"{flag} {path} is the log being replayed: name another file")
+
+
 def replay_command(args: argparse.Namespace, outputs: Any) -> int:
     """``humanoid-twin replay``: every input checked (one line, exit 2) before ``outputs`` (the CLI's
     temporary-name outputs, cli/main.py) creates anything; the replay; the outputs renamed."""
@@ -63,6 +81,7 @@ def replay_command(args: argparse.Namespace, outputs: Any) -> int:
     if args.seed is not None and not 0 <= args.seed <= SEED_MAX:
         raise usage_error(f"--seed {args.seed}: must be 0..{SEED_MAX}")
     check_recording_outputs(args)
+    _check_not_the_log(args)
     laws = load_controllers(args)["laws"]
     try:
         info = check_log(args.file)
