@@ -90,6 +90,7 @@ def test_the_command_checks_and_says_so(plain: Path, capsys) -> None:
     result = json.loads(out)
     assert result["match"] is True and result["difference"] is None
     assert result["twin_writes"] == result["logged_writes"] > 50
+    assert result["end_s"] == 4.0               # the run's end (the log's close), not its last byte
     code, out, err = _cli(["replay", str(plain), "--seed", "6"], capsys)     # another twin
     assert code == 1 and out == "" and err.count("\n") == 1 and "answers differ" in err, err
 
@@ -173,7 +174,8 @@ def test_a_socketcan_log_replays_on_the_twins_own_wire(plain: Path, tmp_path: Pa
 
 
 @pytest.mark.parametrize("what", ["empty", "directory", "binary", "nul", "not ascii", "long line", "fifo",
-                                  "missing", "meta not an object", "meta twice", "line settings"])
+                                  "missing", "meta not an object", "meta twice", "line settings",
+                                  "end before a line", "a line after the end"])
 def test_a_hostile_file_is_one_line_exit_2(what: str, plain: Path, tmp_path: Path, capsys) -> None:
     f = tmp_path / "x.serial"
     head = plain.read_text().splitlines()[:4]
@@ -195,6 +197,12 @@ def test_a_hostile_file_is_one_line_exit_2(what: str, plain: Path, tmp_path: Pat
         f.write_text("\n".join([*head, "# meta [1, 2]"]) + "\n")
     elif what == "meta twice":
         f.write_text("\n".join([*head, '# meta {"seed": 6}']) + "\n")
+    elif what == "end before a line":
+        f.write_text("\n".join([*head, "0 host>twin 573 ff c0 00 00 00 3f",
+                                "600 twin>host 1173 fa f9 f8 f7 f6 f5", '# meta {"end_us": 300}']) + "\n")
+    elif what == "a line after the end":
+        f.write_text("\n".join([*head, "0 host>twin 573 ff c0 00 00 00 3f", '# meta {"end_us": 1000}',
+                                "1100 host>twin 1673 ff c0 00 00 00 3f"]) + "\n")
     elif what == "line settings":
         f.write_text("\n".join([head[0], "# line 9600 8N1; times in virtual microseconds", *head[2:]]) + "\n")
     code, out, err = _cli(["replay", str(f), "--out", str(tmp_path / "r.rrd")], capsys)

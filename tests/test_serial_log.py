@@ -46,7 +46,7 @@ def logged(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, dict[str, in
     killcom(H)
     twin.run_for(0.05)
     counts = {"to_device": twin.link.bytes_to_device, "to_host": twin.link.bytes_to_host,
-              "answer": answer[0] if answer else -1}
+              "answer": answer[0] if answer else -1, "closed_us": twin.clock.now_us}
     log.close()
     twin.close()
     return path, counts
@@ -56,7 +56,7 @@ def test_every_byte_each_way_with_its_time(logged) -> None:
     path, counts = logged
     assert counts["answer"] == 0xFA                    # the test message answered FA F9 ...
     meta, records = read_log(path)
-    assert meta == {"seed": 3}
+    assert meta == {"seed": 3, "end_us": counts["closed_us"]}       # the instant it was closed
     host = b"".join(r.data for r in records if r.event == "host>twin")
     twin = b"".join(r.data for r in records if r.event == "twin>host")
     assert len(host) == counts["to_device"] and len(twin) == counts["to_host"]
@@ -116,7 +116,7 @@ def test_the_tap_is_removed_on_close(tmp_path: Path) -> None:
         n = len((tmp_path / "a.log").read_text().splitlines())
         H.write(TEST_MSG)
         H.read(6)
-        assert len((tmp_path / "a.log").read_text().splitlines()) == n == 4 + 2
+        assert len((tmp_path / "a.log").read_text().splitlines()) == n == 4 + 2 + 1     # and its end
 
 
 @pytest.mark.slow

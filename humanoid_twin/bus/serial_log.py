@@ -34,6 +34,7 @@ MAGIC = "# humanoid-twin serial log 1"
 _EVENTS = (TAP_TO_DEVICE, TAP_TO_HOST, TAP_FLUSH, TAP_UNPLUG)
 LINE_PREFIX = "# line "
 META_PREFIX = "# meta "
+END_KEY = "end_us"          # the meta's key of the instant the log was closed (SerialLog.close)
 # the longest run a log may describe: one simulated day, as run's --duration and a fault's times
 # (a log's times are bounded so that its replay is: a far-future event would run on for ever)
 MAX_LOG_S = 86_400
@@ -123,15 +124,21 @@ class SerialLog:
         self.records += 1
 
     def close(self) -> None:
-        """Stop logging and close the file (idempotent; safe from a signal handler's finally)."""
-        f, self._f = self._f, None
+        """Stop logging, note the instant it stopped (``# meta {"end_us": T}``: a replay runs the
+        twin to there, the run's end, not only to its last byte) and close the file (idempotent;
+        safe from a signal handler's finally)."""
+        f = self._f
         if f is None:
             return
         try:
-            self.link.remove_tap(self._on_event)
-        except ValueError:
-            pass
-        f.close()
+            self.note({END_KEY: self.link.clock.now_us})
+        finally:
+            self._f = None
+            try:
+                self.link.remove_tap(self._on_event)
+            except ValueError:
+                pass
+            f.close()
 
     def __enter__(self) -> SerialLog:
         return self
@@ -144,7 +151,7 @@ class SerialLog:
 class LogInfo:
     """What :func:`scan_log` found in a whole, consistent log: the ``meta`` (every ``# meta``
     line's keys), the number of ``records``, and ``end_us``, the last instant a line names (a
-    write's last stop bit included)."""
+    write's last stop bit included; the log's close, :data:`END_KEY`, when it says it)."""
 
     meta: dict[str, Any] = field(default_factory=dict)
     records: int = 0
@@ -294,9 +301,13 @@ def iter_log(path: str | Path) -> Iterator[tuple[int, Record | dict[str, Any]]]:
     except ValueError as exc:           # a line the cable cannot be (a baud rate of 0, 9 data bits ...)
         raise SerialLogError(f"{path}: its '# line' header names a line a cable cannot have: {exc}") from None
     last = 0
+    closed: int | None = None          # the instant the log was closed (END_KEY), once read
     for no, ln in _lines(path):
         if ln.startswith(META_PREFIX):
-            yield no, _meta_line(path, no, ln[len(META_PREFIX):])
+            meta = _meta_line(path, no, ln[len(META_PREFIX):])
+            if END_KEY in meta:
+                closed = _end(path, no, meta[END_KEY], last)
+            yield no, meta
             continue
         if not ln or ln.startswith("#"):
             continue
@@ -305,6 +316,8 @@ def iter_log(path: str | Path) -> Iterator[tuple[int, Record | dict[str, Any]]]:
             why = None
             if max(rec.t_us, rec.end_us) > MAX_LOG_US:
                 why = f"a time beyond {MAX_LOG_S} s (one simulated day, the longest run)"
+            elif closed is not None:
+                why = f"a line after the log was closed (at {closed})"
             elif rec.t_us < last:
                 why = f"time goes back ({rec.t_us} after {last})"
             else:
@@ -315,6 +328,15 @@ def iter_log(path: str | Path) -> Iterator[tuple[int, Record | dict[str, Any]]]:
             raise SerialLogError(f"{path}:{no}: the line contradicts the log: {why}: {ln[:80]!r}")
         last = rec.t_us
         yield no, rec
+
+
+def _end(path: str | Path, no: int, value: Any, last: int) -> int:
+    """The meta's :data:`END_KEY` (line ``no``): an instant at or after the last line's (``last``),
+    within :data:`MAX_LOG_S`."""
+    if type(value) is not int or not last <= value <= MAX_LOG_US:
+        raise SerialLogError(f"{path}:{no}: the meta's {END_KEY} must be an instant {last}..{MAX_LOG_US} "
+                             f"(the last line's to one simulated day), got {value!r:.40}")
+    return value
 
 
 def merge_meta(path: str | Path, meta: dict[str, Any], no: int, more: dict[str, Any]) -> None:
@@ -333,6 +355,7 @@ def scan_log(path: str | Path) -> LogInfo:
     for no, item in iter_log(path):
         if isinstance(item, dict):
             merge_meta(path, info.meta, no, item)
+            info.end_us = max(info.end_us, item.get(END_KEY, 0))
         else:
             info.records += 1
             info.end_us = max(info.end_us, item.t_us, item.end_us)
