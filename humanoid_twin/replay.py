@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import time
 from collections import deque
 from collections.abc import Iterable
 from dataclasses import dataclass
@@ -46,8 +47,8 @@ from humanoid_twin.protocol.wire import BAUDRATE, BYTESIZE, PARITY, STOPBITS
 from humanoid_twin.rig import Rig, RigOptions
 from humanoid_twin.seeds import SEED_MAX
 
-__all__ = ["ReplayError", "ReplayResult", "REPLAY_CAN_INTERFACES", "check_log", "check_meta", "replay",
-           "replay_options"]
+__all__ = ["ReplayError", "ReplayTimeoutError", "ReplayResult", "WALL_CHECK_US", "REPLAY_CAN_INTERFACES",
+           "check_log", "check_meta", "replay", "replay_options"]
 
 # the CAN wires a replay builds: in-process ones (python-can's "virtual" bus is in-process too)
 REPLAY_CAN_INTERFACES = ("humanoid_twin", "virtual")
@@ -56,6 +57,16 @@ REPLAY_CAN_INTERFACES = ("humanoid_twin", "virtual")
 class ReplayError(ValueError):
     """The log cannot be replayed here (not a serial log, records that contradict each other, a
     meta that cannot rebuild the twin, a law it names that the caller did not give): one line."""
+
+
+class ReplayTimeoutError(RuntimeError):
+    """The replay took more wall time than it was given (``wall_timeout``); its outputs are
+    closed, not complete."""
+
+
+# the replay advances the twin at most this far at a time (virtual us) between two looks at the
+# wall clock: a long silence in a log is many steps (the same run: serve's loop steps 1 ms)
+WALL_CHECK_US = 100_000
 
 
 @dataclass
@@ -195,10 +206,10 @@ def replay_options(path: str | Path, info: LogInfo, *, seed: int | None = None,
     """The :class:`RigOptions` of the twin ``info``'s meta describes (``seed``, ``can_interface``:
     these instead; ``laws``: the classes the caller names, :func:`_resolve_laws`), with no output
     and no monitor; :class:`ReplayError` when the meta cannot rebuild it here."""
-    meta = info.meta
     try:
-        opts = RigOptions.from_replay_meta(meta)
-    except ValueError as exc:
+        opts = RigOptions.from_replay_meta(info.meta)
+        opts = dataclasses.replace(opts, laws=_resolve_laws(opts.laws, laws))
+    except ValueError as exc:           # ReplayError too: the message gets the file's name
         raise ReplayError(f"{path}: {exc}") from None
     interface = can_interface or opts.can_interface
     if interface not in REPLAY_CAN_INTERFACES:
@@ -206,18 +217,10 @@ def replay_options(path: str | Path, info: LogInfo, *, seed: int | None = None,
                           f"{opts.can_channel!r:.40}): a replay opens no system CAN interface a log names; "
                           "replay it on the twin's own wire: --can-interface humanoid_twin")
     channel = opts.can_channel if interface == opts.can_interface else None
-    opts = dataclasses.replace(opts, can_interface=interface, can_channel=channel,
-                               laws=_prefixed(path, _resolve_laws, opts.laws, laws))
+    opts = dataclasses.replace(opts, can_interface=interface, can_channel=channel)
     if seed is not None:
         opts = dataclasses.replace(opts, seed=seed)
     return opts
-
-
-def _prefixed(path: str | Path, fn: Any, *args: Any) -> Any:
-    try:
-        return fn(*args)
-    except ReplayError as exc:
-        raise ReplayError(f"{path}: {exc}") from None
 
 
 class _Comparison:
@@ -275,12 +278,14 @@ class _Comparison:
 
 def replay(path: str | Path, seed: int | None = None, *, laws: Iterable[tuple[int | str, Any]] = (),
            can_interface: str | None = None, out: Path | None = None, can_log: Path | None = None,
-           can_log_name: str | None = None, info: LogInfo | None = None) -> ReplayResult:
+           can_log_name: str | None = None, info: LogInfo | None = None,
+           wall_timeout: float | None = None) -> ReplayResult:
     """Feed the host->twin bytes of the log at their instants (the flushes and unplugs too) into
     the twin its meta describes (:func:`replay_options`) and compare its twin->host writes with
     the log's. ``out`` / ``can_log``: record the replay (a rerun recording, a CAN log) as a run
-    does; ``info``: the log already checked (:func:`check_log`), else it is checked here.
-    :class:`ReplayError` when the log cannot be replayed (nothing has run then).
+    does; ``info``: the log already checked (:func:`check_log`), else it is checked here;
+    ``wall_timeout``: at most that many wall seconds (:class:`ReplayTimeoutError` beyond, the
+    outputs closed). :class:`ReplayError` when the log cannot be replayed (nothing has run then).
 
     An unplug is a ``serve`` session's start or end, which also resets the Master's receiver
     (``bus/bridges.py``): the replay does both. A host line at the instant the twin is at is fed
@@ -298,6 +303,15 @@ def replay(path: str | Path, seed: int | None = None, *, laws: Iterable[tuple[in
         raise ReplayError(f"{path}: {exc}") from None
     cmp = _Comparison()
     host = 0
+    deadline = None if wall_timeout is None else time.monotonic() + wall_timeout
+
+    def advance(t_us: int) -> None:
+        while twin.clock.now_us < t_us:
+            if deadline is not None and time.monotonic() > deadline:
+                raise ReplayTimeoutError(f"the replay took more than {wall_timeout:g} wall seconds: stopped "
+                                         f"at t={twin.now_s:.3f} s simulated")
+            twin.advance_to(min(t_us, twin.clock.now_us + WALL_CHECK_US))
+
     try:
         twin = rig.twin
         if "tilt_from_s" in info.meta:
@@ -309,8 +323,7 @@ def replay(path: str | Path, seed: int | None = None, *, laws: Iterable[tuple[in
             if rec.event == TAP_TO_HOST:
                 cmp.expect(no, rec)
             else:
-                if rec.t_us > twin.clock.now_us:
-                    twin.advance_to(rec.t_us)
+                advance(rec.t_us)
                 if rec.event == TAP_TO_DEVICE:
                     twin.link.host_write(rec.data)
                     host += len(rec.data)
@@ -323,7 +336,7 @@ def replay(path: str | Path, seed: int | None = None, *, laws: Iterable[tuple[in
             if cmp.difference is not None and not recording:
                 break
         else:
-            twin.advance_to(max(info.end_us, twin.clock.now_us))
+            advance(info.end_us)
             cmp.match(twin.clock.now_us, info.end_us)
             cmp.finish()
     except SerialLogError as exc:       # the file changed since it was checked

@@ -12,6 +12,7 @@ import os
 import subprocess
 import sys
 import textwrap
+import time
 from pathlib import Path
 
 import pytest
@@ -275,6 +276,20 @@ def test_the_replay_records_as_a_run_does(plain: Path, tmp_path: Path, capsys) -
     code, _, err = _cli(["replay", str(plain), "--out", str(tmp_path / "r.txt")], capsys)
     assert code == 2 and ".rrd" in err
     assert sorted(p.name for p in tmp_path.iterdir()) == ["r.asc", "r.rrd"]
+
+
+def test_a_long_silence_is_bounded_by_wall_timeout(plain: Path, tmp_path: Path, capsys) -> None:
+    """A log whose last line is an hour on (a valid time): ``--wall-timeout`` ends the replay
+    (between two 0.1 s steps of a silence), one line, exit 1, nothing written."""
+    long = tmp_path / "long.serial"
+    lines = [ln for ln in plain.read_text().splitlines() if '"end_us"' not in ln]
+    long.write_text("\n".join([*lines, "3600000000 host>twin 3600000573 ff c0 00 00 00 3f"]) + "\n")
+    out = tmp_path / "r.rrd"
+    t0 = time.monotonic()
+    code, stdout, err = _cli(["replay", str(long), "--wall-timeout", "2", "--out", str(out)], capsys)
+    assert code == 1 and stdout == "" and err.count("\n") == 1 and "--wall-timeout" in err, err
+    assert time.monotonic() - t0 < 30
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["long.serial"]
 
 
 def test_an_output_that_is_the_log_itself_is_refused(plain: Path, tmp_path: Path, capsys) -> None:

@@ -9,7 +9,8 @@ The command line is a contract (scripts and CI depend on it; docs/scenarios.md):
                         [--serial-log FILE] [--viewer | --connect [ADDR]]
                         [--law ...] [--fault ...] [--tilt DEG] [--seed N]
     humanoid-twin view FILE.rrd
-    humanoid-twin replay FILE [--out FILE.rrd] [--can-log FILE] [--seed N] [--law ...] [--json]
+    humanoid-twin replay FILE [--out FILE.rrd] [--can-log FILE] [--seed N] [--law ...] [--wall-timeout S]
+                         [--json]
 
 SCENARIO: a built-in one, or the user's (FILE.py:NAME, MODULE:NAME, an entry point's name).
 The options ``run`` and ``serve`` share are defined and checked once (cli/options.py).

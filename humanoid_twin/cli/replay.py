@@ -5,7 +5,8 @@ Exit codes: 0 every answer of the twin matches the log; 1 they differ (the first
 stderr; the outputs asked for are written all the same: they show what the twin does now); 2 bad
 input (one line on stderr, before anything is written: not a serial log, records that contradict
 each other, a meta that cannot rebuild the twin, a law the log names and the command line does
-not); 130/143 SIGINT/SIGTERM (what was recorded is kept, as ``run`` does).
+not; a replay past ``--wall-timeout``: its outputs discarded); 130/143 SIGINT/SIGTERM (what was
+recorded is kept, as ``run`` does).
 """
 
 from __future__ import annotations
@@ -13,9 +14,11 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+import time
 from pathlib import Path
 from typing import Any
 
+from humanoid_twin.cli.argtypes import wall_seconds
 from humanoid_twin.cli.options import (
     add_law_option,
     check_recording_outputs,
@@ -49,6 +52,9 @@ def add_replay_parser(sub: Any) -> None:
     add_law_option(p, help_more="; a law the log names runs only when named here the same (a log is "
                    "data: its replay imports no code the command line does not name)")
     p.add_argument("--json", action="store_true", help="print the result as one JSON object, alone on stdout")
+    p.add_argument("--wall-timeout", type=wall_seconds, metavar="S",
+                   help="end the replay after S seconds of wall time, counted from the start (one line, "
+                   "exit 1, nothing replaced); default: no limit (a log spans one simulated day at most)")
     p.set_defaults(serial_log=None)      # the outputs' shared code knows a run's three
 
 
@@ -76,8 +82,9 @@ def replay_command(args: argparse.Namespace, outputs: Any) -> int:
     from humanoid_twin import signals
     from humanoid_twin.clock import US_PER_S
     from humanoid_twin.recording.readback import RrdReadError
-    from humanoid_twin.replay import ReplayError, check_log, replay, replay_options
+    from humanoid_twin.replay import ReplayError, ReplayTimeoutError, check_log, replay, replay_options
 
+    t0 = time.monotonic()
     if args.seed is not None and not 0 <= args.seed <= SEED_MAX:
         raise usage_error(f"--seed {args.seed}: must be 0..{SEED_MAX}")
     check_recording_outputs(args)
@@ -93,9 +100,14 @@ def replay_command(args: argparse.Namespace, outputs: Any) -> int:
         files = outputs.open_all(args.out, args, info.end_us / US_PER_S)
         try:
             res = replay(args.file, args.seed, laws=laws, can_interface=args.can_interface, out=files["out"],
-                         can_log=files["can_log"], can_log_name=files["can_log_name"], info=info)
+                         can_log=files["can_log"], can_log_name=files["can_log_name"], info=info,
+                         wall_timeout=None if args.wall_timeout is None
+                         else max(0.0, args.wall_timeout - (time.monotonic() - t0)))
         except ReplayError as exc:
             raise usage_error(outputs.final_names(str(exc))) from None
+        except ReplayTimeoutError as exc:        # the outputs are discarded: nothing replaced
+            sys.stderr.write(f"humanoid-twin replay: {args.file}: {exc} (--wall-timeout)\n")
+            return 1
         except KeyboardInterrupt as exc:         # SIGINT / SIGTERM: the files closed whole, kept
             outputs.commit()
             kept = " ".join(str(p) for p in outputs.final.values())
