@@ -302,3 +302,35 @@ def test_an_output_that_is_the_log_itself_is_refused(plain: Path, tmp_path: Path
         code, out, err = _cli(["replay", str(log), *argv], capsys)
         assert code == 2 and out == "" and "is the log being replayed" in err, err
         assert log.read_bytes() == plain.read_bytes()
+
+
+def test_the_help_lists_the_command(capsys) -> None:
+    code, out, _ = _cli(["--help"], capsys)
+    assert code == 0 and "replay    replay a serial log" in out
+    code, out, _ = _cli(["replay", "--help"], capsys)
+    assert code == 0 and "--out FILE.rrd" in out and "--wall-timeout S" in out
+
+
+def test_sigterm_keeps_what_was_recorded(plain: Path, tmp_path: Path) -> None:
+    """SIGTERM in the middle of a replay (a log with an hour of silence): exit 143, one line, the
+    recording closed whole under its final name, no temporary file left."""
+    import signal
+
+    from humanoid_twin.recording.readback import verify_rrd
+
+    long = tmp_path / "long.serial"
+    lines = [ln for ln in plain.read_text().splitlines() if '"end_us"' not in ln]
+    long.write_text("\n".join([*lines, "3600000000 host>twin 3600000573 ff c0 00 00 00 3f"]) + "\n")
+    out = tmp_path / "r.rrd"
+    proc = subprocess.Popen([*CLI, "replay", str(long), "--out", str(out)], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + 60
+    while not any(p.name.startswith(".partial-") for p in tmp_path.iterdir()) and time.monotonic() < deadline:
+        time.sleep(0.05)                  # the outputs exist: the replay is under way
+    time.sleep(1.0)
+    proc.send_signal(signal.SIGTERM)
+    stdout, err = proc.communicate(timeout=60)
+    assert proc.returncode == 143 and stdout == "" and err.count("\n") == 1, err
+    assert f"terminated (SIGTERM); recorded so far: {out}" in err
+    verify_rrd(out)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["long.serial", "r.rrd"]
