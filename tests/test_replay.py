@@ -334,3 +334,22 @@ def test_sigterm_keeps_what_was_recorded(plain: Path, tmp_path: Path) -> None:
     assert f"terminated (SIGTERM); recorded so far: {out}" in err
     verify_rrd(out)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["long.serial", "r.rrd"]
+
+
+@pytest.mark.parametrize("argv, said", [
+    (["replay"], "the following arguments are required: FILE"),
+    (["replay", "x.serial", "--bogus"], "unrecognized arguments: --bogus"),
+    (["replay", "x.serial", "--can-interface", "socketcan"], "invalid choice: 'socketcan'"),
+    (["replay", "x.serial", "--wall-timeout", "0"], "--wall-timeout"),
+    (["replay", "x.serial", "--law", "balance"], "--law"),
+])
+def test_bad_options_are_one_line_exit_2(argv: list[str], said: str, plain: Path, capsys) -> None:
+    code, out, err = _cli([argv[0], *[str(plain) if a == "x.serial" else a for a in argv[1:]]], capsys)
+    assert code == 2 and out == "" and err.count("\n") == 1 and said in err, err
+
+
+def test_one_simulated_day_bounds_a_log_a_run_and_a_fault_alike() -> None:
+    from humanoid_twin.cli.main import MAX_DURATION_S
+    from humanoid_twin.faults import MAX_FAULT_S
+
+    assert MAX_LOG_S == MAX_DURATION_S == MAX_FAULT_S == 86_400
