@@ -33,12 +33,19 @@ __all__ = [
     "ControllerError",
     "HostToolbox",
     "HostContext",
+    "law_reference",
     "load_host_controller",
     "run_host_controller",
 ]
 
 DEFAULT_HOST_PERIOD_MS = 20
 HostStep = Callable[["HostContext"], Any]
+
+
+def law_reference(law: Any) -> str:
+    """How a run's records name a firmware law (a serial log's meta, its replay's check):
+    ``module:Class`` of a class, or the reference text it was given as."""
+    return law if isinstance(law, str) else f"{law.__module__}:{law.__qualname__}"
 
 
 class ControllerError(ValueError):

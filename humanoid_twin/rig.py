@@ -35,6 +35,7 @@ from pathlib import Path
 from typing import Any
 
 from humanoid_twin.board_report import BoardReport
+from humanoid_twin.controllers import law_reference
 from humanoid_twin.cycles import DEFAULT_PIC_MHZ
 from humanoid_twin.faults import FaultInjector, FaultSpec
 from humanoid_twin.host import drivers
@@ -104,8 +105,7 @@ class RigOptions:
         if self.supervisor is not None:
             meta["supervisor"] = dataclasses.asdict(self.supervisor)
         if self.laws:
-            meta["laws"] = [[ctype, law if isinstance(law, str) else f"{law.__module__}:{law.__qualname__}"]
-                            for ctype, law in self.laws]
+            meta["laws"] = [[ctype, law_reference(law)] for ctype, law in self.laws]
         if self.tilt:
             meta["tilt"] = self.tilt
         if self.pic_mhz != DEFAULT_PIC_MHZ:

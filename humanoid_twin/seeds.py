@@ -8,7 +8,9 @@ run's seed (``numpy.random.SeedSequence``).
 
 from __future__ import annotations
 
-__all__ = ["STREAM_PHASES", "STREAM_SERIAL_NOISE", "derive_seed"]
+__all__ = ["SEED_MAX", "STREAM_PHASES", "STREAM_SERIAL_NOISE", "derive_seed"]
+
+SEED_MAX = 2**32 - 1        # a run's seed is 0..2**32-1 (numpy's range): --seed, a serial log's meta
 
 _STRIDE = 7919               # a prime: seed s's streams are far from seed s + 1's
 

@@ -11,7 +11,11 @@
   plant has not synced. The tests and ``scripts/`` may import ``mujoco`` (they measure and check
   the plant and MuJoCo itself: ``scripts/bench.py`` times bare MuJoCo);
 - ``Plant.advance_to`` is the twin's (``Twin.advance_to``): the plant syncs itself to the clock
-  before every access (docs/architecture.md, "The one clock").
+  before every access (docs/architecture.md, "The one clock");
+- the buses (``humanoid_twin/bus``: the cables, the bridges, the serial log's format) are built on
+  the clock and the protocol's codecs only: nothing they import is built on them (the rig, the
+  replay, the twin ...). The replay of a serial log builds a rig: it is above it
+  (``humanoid_twin/replay.py``), and the rig does not import it.
 """
 
 from __future__ import annotations
@@ -55,6 +59,32 @@ def test_no_module_below_the_cli_imports_the_cli() -> None:
     offenders = {str(p.relative_to(PACKAGE)): _of(_imports(p), "humanoid_twin.cli") for p in below}
     offenders = {k: v for k, v in offenders.items() if v}
     assert not offenders, offenders
+
+
+BUS = PACKAGE / "bus"
+BUS_MAY_IMPORT = ("humanoid_twin.bus", "humanoid_twin.protocol", "humanoid_twin.clock")
+
+
+def _above_the_bus(path: Path) -> list[str]:
+    return [m for m in _of(_imports(path), "humanoid_twin")
+            if m != "humanoid_twin" and not any(m == ok or m.startswith(ok + ".") for ok in BUS_MAY_IMPORT)]
+
+
+def test_the_buses_import_nothing_built_on_them() -> None:
+    files = sorted(BUS.glob("*.py"))
+    assert BUS / "serial_log.py" in files
+    offenders = {str(f.relative_to(PACKAGE)): _above_the_bus(f) for f in files}
+    assert not {k: v for k, v in offenders.items() if v}, offenders
+    assert not _of(_imports(PACKAGE / "rig.py"), "humanoid_twin.replay")
+    assert _of(_imports(PACKAGE / "replay.py"), "humanoid_twin.rig")       # the replay builds a rig
+
+
+def test_the_scan_finds_the_replay_below_the_rig(tmp_path: Path) -> None:
+    """bus/serial_log.py as it was (its replay built a Rig): the rule above fails on it."""
+    f = tmp_path / "serial_log.py"
+    f.write_text("from humanoid_twin.bus.serial_link import SerialLink\n\n"
+                 "def replay(path):\n    from humanoid_twin.rig import Rig, RigOptions\n")
+    assert _above_the_bus(f) == ["humanoid_twin.rig", "humanoid_twin.rig.Rig", "humanoid_twin.rig.RigOptions"]
 
 
 def test_only_the_plant_imports_mujoco() -> None:

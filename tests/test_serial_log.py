@@ -12,11 +12,13 @@ from pathlib import Path
 
 import pytest
 
-from humanoid_twin.bus.serial_log import SerialLog, read_log, replay
+from humanoid_twin.bus.serial_log import SerialLog, read_log
 from humanoid_twin.host import initcom, killcom, power_on, readjoint
+from humanoid_twin.replay import replay
 from humanoid_twin.twin import Twin
 
-REPLAY = [sys.executable, "-m", "humanoid_twin.bus.serial_log", "replay"]
+REPLAY = [sys.executable, "-m", "humanoid_twin.cli.main", "replay"]
+ALIAS = [sys.executable, "-m", "humanoid_twin.bus.serial_log", "replay"]      # the older spelling
 TEST_MSG = bytes([0xFF, 0xC0, 0, 0, 0, 0x3F])      # MASTER test message (docs/protocol.md)
 
 
@@ -44,7 +46,7 @@ def logged(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, dict[str, in
     killcom(H)
     twin.run_for(0.05)
     counts = {"to_device": twin.link.bytes_to_device, "to_host": twin.link.bytes_to_host,
-              "answer": answer[0] if answer else -1}
+              "answer": answer[0] if answer else -1, "closed_us": twin.clock.now_us}
     log.close()
     twin.close()
     return path, counts
@@ -54,7 +56,7 @@ def test_every_byte_each_way_with_its_time(logged) -> None:
     path, counts = logged
     assert counts["answer"] == 0xFA                    # the test message answered FA F9 ...
     meta, records = read_log(path)
-    assert meta == {"seed": 3}
+    assert meta == {"seed": 3, "end_us": counts["closed_us"]}       # the instant it was closed
     host = b"".join(r.data for r in records if r.event == "host>twin")
     twin = b"".join(r.data for r in records if r.event == "twin>host")
     assert len(host) == counts["to_device"] and len(twin) == counts["to_host"]
@@ -73,9 +75,10 @@ def test_every_byte_each_way_with_its_time(logged) -> None:
 
 def test_the_replay_gets_the_same_answers_at_the_same_microseconds(logged) -> None:
     path, _ = logged
-    r = subprocess.run([*REPLAY, str(path)], capture_output=True, text=True, timeout=120)
-    assert r.returncode == 0, r.stderr
-    assert "match the log" in r.stdout and r.stderr == ""
+    for cmd in (REPLAY, ALIAS):         # humanoid-twin replay, and the module's older spelling
+        r = subprocess.run([*cmd, str(path)], capture_output=True, text=True, timeout=120)
+        assert r.returncode == 0, r.stderr
+        assert "match the log" in r.stdout and r.stderr == ""
 
 
 def test_a_changed_answer_or_time_is_found(logged, tmp_path: Path) -> None:
@@ -83,12 +86,13 @@ def test_a_changed_answer_or_time_is_found(logged, tmp_path: Path) -> None:
     lines = path.read_text().splitlines(keepends=True)
     i = next(k for k, ln in enumerate(lines) if " twin>host " in ln and k > 40)
     t, ev, end, *hexes = lines[i].split()
-    for changed in (f"{t} {ev} {end} {' '.join(['00'] + hexes[1:])}\n",        # a byte
-                    f"{t} {ev} {int(end) + 1} {' '.join(hexes)}\n"):            # a microsecond
+    for changed in (f"{t} {ev} {end} {' '.join(['00'] + hexes[1:])}\n",                # a byte
+                    f"{int(t) + 1} {ev} {int(end) + 1} {' '.join(hexes)}\n"):          # a microsecond later
         bad = tmp_path / "bad.log"
         bad.write_text("".join(lines[:i] + [changed] + lines[i + 1:]))
         r = subprocess.run([*REPLAY, str(bad)], capture_output=True, text=True, timeout=120)
         assert r.returncode == 1 and "differ" in r.stderr and changed.strip() in r.stderr, r.stderr
+        assert f"line {i + 1}," in r.stderr
     res = replay(path, seed=4)           # another seed: other board phases, other answers
     assert res.difference is not None
 
@@ -112,7 +116,7 @@ def test_the_tap_is_removed_on_close(tmp_path: Path) -> None:
         n = len((tmp_path / "a.log").read_text().splitlines())
         H.write(TEST_MSG)
         H.read(6)
-        assert len((tmp_path / "a.log").read_text().splitlines()) == n == 4 + 2
+        assert len((tmp_path / "a.log").read_text().splitlines()) == n == 4 + 2 + 1     # and its end
 
 
 @pytest.mark.slow

@@ -9,6 +9,8 @@ The command line is a contract (scripts and CI depend on it; docs/scenarios.md):
                         [--serial-log FILE] [--viewer | --connect [ADDR]]
                         [--law ...] [--fault ...] [--tilt DEG] [--seed N]
     humanoid-twin view FILE.rrd
+    humanoid-twin replay FILE [--out FILE.rrd] [--can-log FILE] [--seed N] [--law ...] [--wall-timeout S]
+                         [--json]
 
 SCENARIO: a built-in one, or the user's (FILE.py:NAME, MODULE:NAME, an entry point's name).
 The options ``run`` and ``serve`` share are defined and checked once (cli/options.py).
@@ -191,6 +193,10 @@ def build_parser() -> argparse.ArgumentParser:
     from humanoid_twin.cli.compare import add_compare_parsers
 
     add_compare_parsers(sub)    # compare, calibrate (cli/compare.py)
+
+    from humanoid_twin.cli.replay import add_replay_parser
+
+    add_replay_parser(sub)
 
     view = sub.add_parser("view", help="open a recording in the rerun viewer",
                           description="Open FILE.rrd in the rerun viewer (same as `rerun FILE.rrd`).")
@@ -645,6 +651,13 @@ def cmd_params(args: argparse.Namespace) -> int:
     return params_command(args)
 
 
+def cmd_replay(args: argparse.Namespace) -> int:
+    """``humanoid-twin replay``: a serial log into the twin it describes (cli/replay.py)."""
+    from humanoid_twin.cli.replay import replay_command
+
+    return replay_command(args, _Outputs())
+
+
 def _warn_stale_core() -> None:
     """One line on stderr when, in a source tree, a compiled module is older than its source."""
     from humanoid_twin.core import PURE_PYTHON_ENV, stale_modules
@@ -672,7 +685,8 @@ def main(argv: list[str] | None = None) -> int:
         args.run_args = extra
         _warn_stale_core()
         handler = {"run": cmd_run, "serve": cmd_serve, "view": cmd_view, "sweep": cmd_sweep,
-                   "params": cmd_params, "compare": _cmd_compare, "calibrate": _cmd_calibrate}[args.command]
+                   "params": cmd_params, "compare": _cmd_compare, "calibrate": _cmd_calibrate,
+                   "replay": cmd_replay}[args.command]
         return handler(args)
     except Exception as exc:
         # a signal that landed in an extension module's import comes out wrapped (ImportError)

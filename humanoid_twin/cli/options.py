@@ -18,10 +18,10 @@ from pathlib import Path
 from typing import Any
 
 from humanoid_twin.cli.argtypes import checked, degrees_90
+from humanoid_twin.seeds import SEED_MAX
 
 EXIT_USAGE = 2
 CAN_INTERFACES = ("humanoid_twin", "virtual", "socketcan")
-SEED_MAX = 2**32 - 1        # seeds are 0..2**32-1 (numpy's range)
 
 
 def usage_error(message: str) -> SystemExit:
@@ -77,8 +77,7 @@ def add_rig_options(p: argparse.ArgumentParser, out_help: str) -> None:
     p.add_argument("--can-log", type=Path, help="CAN log to write; format by suffix (.asc .blf .log "
                    ".csv .trc ...), python-can writers")
     p.add_argument("--serial-log", type=Path, metavar="FILE", help="log every RS-232 byte each way with its "
-                   "virtual time (text); replay it with python -m humanoid_twin.bus.serial_log replay FILE "
-                   "(docs/buses.md)")
+                   "virtual time (text); replay it with humanoid-twin replay FILE (docs/buses.md)")
     p.add_argument("--tilt", type=degrees_90, default=0.0, help="tilt the floor platform slowly (1 deg/s, "
                    "once the robot has booted) about the lateral axis to DEG (toes up positive)")
     p.add_argument("--seed", type=int, default=0, help="random seed (sensor noise, servo offsets, "
@@ -88,10 +87,15 @@ def add_rig_options(p: argparse.ArgumentParser, out_help: str) -> None:
     from humanoid_twin.cli.params import add_params_options
 
     add_params_options(p)       # --params FILE.toml, --set NAME=VALUE (docs/parameters.md)
+    add_law_option(p)
+
+
+def add_law_option(p: argparse.ArgumentParser, help_more: str = "") -> None:
+    """``--law TYPE=MODULE:CLASS`` (repeatable): ``run``, ``serve`` and ``replay``."""
     p.add_argument("--law", action="append", default=[], metavar="TYPE=MODULE:CLASS",
                    help="run your firmware control law for one control type (none, locomotion, reaction, "
                    "balance) on every Slave; MODULE:CLASS or an entry point of group humanoid_twin.laws; "
-                   "repeatable")
+                   "repeatable" + help_more)
 
 
 _period_ms = checked(float, "a number of milliseconds", lambda v: 1 <= v <= 10_000, "must be 1..10000 ms")
@@ -131,6 +135,12 @@ def check_rig_inputs(args: argparse.Namespace, load: bool = True) -> dict[str, A
     if abs(args.tilt) > TILT_MAX_DEG:
         raise usage_error(f"--tilt {args.tilt:g}: the platform tilts within +-{TILT_MAX_DEG:g} degrees")
     _check_can_interface(args.can_interface, args.can_channel)
+    check_recording_outputs(args)
+    return load_controllers(args) if load else {}
+
+
+def check_recording_outputs(args: argparse.Namespace) -> None:
+    """``--out``'s suffix and ``--can-log``'s format (``run``, ``serve``, ``replay``)."""
     if args.out is not None and args.out.suffix != ".rrd":
         raise usage_error(f"--out {args.out}: a rerun recording must end in .rrd")
     if args.can_log is not None:
@@ -142,7 +152,6 @@ def check_rig_inputs(args: argparse.Namespace, load: bool = True) -> dict[str, A
             raise usage_error(f"--can-log: {exc}") from None
         except OSError:
             pass                          # the writability check of the outputs says it in one line
-    return load_controllers(args) if load else {}
 
 
 def _check_can_interface(interface: str, channel: str | None) -> None:
