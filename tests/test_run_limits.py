@@ -211,7 +211,8 @@ def test_a_sweep_row_of_a_bad_motion_s_is_one_line_not_a_traceback(user: Path) -
     res = _cli(user, "sweep", "user.py:nan", "--param", "tilt=1,2", "--out", "t.csv", "--no-progress")
     assert res.returncode == 102, res.stderr
     rows = (user / "t.csv").read_text().splitlines()[1:]
-    assert len(rows) == 2 and all("its motion_s returned nan" in r and "Traceback" not in r for r in rows), rows
+    assert len(rows) == 2, rows
+    assert all("its motion_s returned nan" in r and "Traceback" not in r for r in rows), rows
 
 
 # -- --wall-timeout armed from the first line (points 7, 13) -----------------------------------------
@@ -266,3 +267,56 @@ def test_a_diverged_simulation_ends_the_run_outcome_diverged_exit_1(user: Path, 
     assert len(err) == 1 and "the simulation diverged" in err[0], res.stderr
     assert (user / "x.rrd").read_bytes() == b"old"
     _no_partials(user)
+
+
+# -- a law's cost, asked once per board and seen by the supervisor however large (points 14, 16) -----
+LAWS = '''
+from humanoid_twin.slave.laws import JacobianLaw
+
+answers = [0]
+
+
+class Changing(JacobianLaw):
+    """Its cost is valid for the CLI's check and SCU 1's instance, not for SCU 2's."""
+    def cycles(self):
+        answers[0] += 1
+        return 100 if answers[0] <= 2 else "lots"
+
+
+class Costly(JacobianLaw):
+    cycles = 200_000_000            # 20 s of one PIC18 at 10 MIPS, per call
+
+
+class Costliest(JacobianLaw):
+    cycles = 2**31 - 1              # the largest cost a law may declare (~215 s)
+'''
+
+
+@pytest.fixture
+def laws(tmp_path: Path) -> Path:
+    (tmp_path / "costly_laws.py").write_text(LAWS)
+    return tmp_path
+
+
+def test_a_law_whose_cost_turns_invalid_on_a_board_is_one_line_exit_2(laws: Path) -> None:
+    """Before: a ValueError traceback from the board's own reading of the cost."""
+    (laws / "x.rrd").write_bytes(b"old")
+    res = _cli(laws, "run", "stand", "--out", "x.rrd", "--no-progress",
+               "--law", "balance=costly_laws:Changing", timeout=60)
+    assert res.returncode == 2, res.stderr
+    err = res.stderr.strip().splitlines()
+    assert len(err) == 1 and "law Changing for SCU 2: ValueError: a law's cycles must" in err[0], res.stderr
+    assert (laws / "x.rrd").read_bytes() == b"old"
+    _no_partials(laws)
+
+
+@pytest.mark.parametrize("law", ["Costly", "Costliest"])
+def test_a_law_that_overruns_by_seconds_is_flagged_when_its_period_ends(laws: Path, law: str) -> None:
+    """Before: the overrun was flagged only when the pass ended, 20 s to 215 s later: never within
+    the run (exit 0, mode ready, task load 1000 to 10 737). Now the period's end sets the deadline
+    bit the Master reads: the supervisor's ``deadline`` fault, ``safe``, exit 3."""
+    res, s = _run_json(laws, "stand", "--no-record", "--law", f"balance=costly_laws:{law}")
+    assert res.returncode == 3, res.stderr
+    assert s["mode"] == "safe" and s["task_load_max"]["slaves"] >= 1000, s
+    assert s["deadline_misses"]["1"] >= 1 and s["deadline_misses"]["2"] >= 1, s
+    assert {(f["name"], f["node"]) for f in s["faults"]} >= {("deadline", 1), ("deadline", 2)}, s
