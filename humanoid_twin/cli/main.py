@@ -381,12 +381,26 @@ def cmd_run(args: argparse.Namespace) -> int:
     try:
         arm_wall_timeout(args.wall_timeout)
         return _cmd_run(args)
-    except WallTimeoutExpired:     # outside the simulation (scenarios.run reports its own)
+    except (WallTimeoutExpired, Exception) as exc:
+        # outside the simulation (scenarios.run reports its own); an alarm that landed in the
+        # import of an extension module comes out of it as an ImportError caused by it
+        if not any(isinstance(e, WallTimeoutExpired) for e in _causes(exc)):
+            raise
         sys.stderr.write(f"humanoid-twin: the run took more than {args.wall_timeout:g} wall seconds "
                          "(--wall-timeout): stopped while loading, planning or sizing the scenario\n")
         return 1
     finally:
         disarm_wall_timeout()
+
+
+def _causes(exc: BaseException, limit: int = 20) -> list[BaseException]:
+    """``exc`` and the exceptions it was raised from or during, nearest first (at most ``limit``)."""
+    out: list[BaseException] = []
+    cur: BaseException | None = exc
+    while cur is not None and len(out) < limit:
+        out.append(cur)
+        cur = cur.__cause__ or cur.__context__
+    return out
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
