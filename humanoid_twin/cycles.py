@@ -118,11 +118,12 @@ def law_cycles(law: Any, ctype: int) -> tuple[int, bool]:
     return c, True
 
 
-def note_default_cost(law: Any, ctype: int) -> None:
-    """The one line a run writes when a law declares no cost (docs/controllers.md)."""
+def note_default_cost(law: Any, ctype: int, cost: tuple[int, bool] | None = None) -> None:
+    """The one line a run writes when a law declares no cost (docs/controllers.md); ``cost``: its
+    :func:`law_cycles`, already asked (None: asked here)."""
     from humanoid_twin.protocol.wire import ControlType
 
-    cycles, declared = law_cycles(law, ctype)
+    cycles, declared = law_cycles(law, ctype) if cost is None else cost
     if not declared:
         label = ControlType(ctype).label
         name = getattr(type(law), "__qualname__", "?")

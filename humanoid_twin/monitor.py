@@ -11,6 +11,7 @@ Public API (stable; ``scenarios.run``, the balance study and user controllers us
     mon.fell, mon.fell_at_s, mon.trunk_tilt_max_deg, mon.cop_margin_min_mm, mon.cop_error_rms_mm
     mon.slip_mm                  # the largest distance a foot slid on the platform
     mon.last                     # the last sampled ``GroundTruth`` (CoP, support polygon, forces)
+    mon.diverged                 # None, or why the simulation stopped being one (and diverged_at_s)
 
 What it measures (the plant's ground truth, never visible to the firmware or the host):
 
@@ -29,6 +30,8 @@ It only reads the plant; a run with and without it is the same run (its CAN log 
 from __future__ import annotations
 
 import math
+import sys
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from functools import partial
 
@@ -67,6 +70,12 @@ class Monitor:
     slip_mm: float = 0.0
     last: GroundTruth | None = field(default=None, repr=False)
     _soles0: list | None = field(default=None, repr=False)
+    # the simulation diverged (Plant.divergence: MuJoCo's instability warning, a non-finite state):
+    # why and when (first sample that saw it); the samples after it are not counted. ``on_diverged``
+    # is called then (``scenarios.run`` ends the run); without it, the reason is one line on stderr
+    diverged: str | None = None
+    diverged_at_s: float | None = None
+    on_diverged: Callable[[], None] | None = field(default=None, repr=False)
 
     def attach(self) -> None:
         """Register on the twin's clock: the truth every 20 ms, and the CoP comparison of each
@@ -79,6 +88,16 @@ class Monitor:
     def sample(self) -> None:
         """One 20 ms sample of the truth (after the boards' ticks at this instant)."""
         twin = self.twin
+        if self.diverged is not None:
+            return
+        why = twin.plant.divergence()
+        if why is not None:
+            self.diverged, self.diverged_at_s = why, twin.now_s
+            if self.on_diverged is not None:
+                self.on_diverged()
+            else:
+                sys.stderr.write(f"humanoid-twin: the simulation diverged at t={twin.now_s:.3f} s: {why}\n")
+            return
         if twin.clock.now_us < self.start_s * US_PER_S:
             return
         gt = twin.plant.truth()

@@ -32,7 +32,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from humanoid_twin.clock import US_PER_S
-from humanoid_twin.containment import attribute_path, describe, user_fault
+from humanoid_twin.containment import attribute_path, describe, short_repr, user_fault
 from humanoid_twin.controllers import load_host_controller, run_host_controller
 from humanoid_twin.host import drivers
 from humanoid_twin.host.motion import exe_traj, send_gains
@@ -48,6 +48,7 @@ from humanoid_twin.host.planners import (
     with_control,
 )
 from humanoid_twin.monitor import Monitor
+from humanoid_twin.plant.plant import quiet_instability_warnings
 from humanoid_twin.protocol.wire import ControlType
 from humanoid_twin.rig import (
     BOOT_TIMEOUT_S,
@@ -91,9 +92,10 @@ class ScenarioLoadError(ScenarioInputError):
 
 
 class _DurationReachedError(BaseException):
-    """Raised by the clock at ``--duration`` when that instant falls inside the scenario's program:
-    the run is cut there and its summary says ``completed: false``. A ``BaseException``: a host
-    controller's (or a user scenario's) ``except Exception`` does not swallow it."""
+    """Raised by the clock at the run's end (``--duration``, or the default one) when that instant
+    falls inside the boot or the scenario's program: the run is cut there and its summary says
+    ``completed: false``. A ``BaseException``: a host controller's (or a user scenario's)
+    ``except Exception`` does not swallow it; one that swallows it gets it again every 20 ms."""
 
 
 class _HostBoundReachedError(BaseException):
@@ -101,8 +103,24 @@ class _HostBoundReachedError(BaseException):
     controller does (sleeps, loops), the run ends at its duration (issue 24)."""
 
 
-class _WallTimeoutError(BaseException):
-    """SIGALRM at ``wall_timeout`` wall seconds (``run --wall-timeout``)."""
+class _DivergedError(BaseException):
+    """Raised by the clock once the ground-truth monitor found the simulation diverged (MuJoCo's
+    instability warning, a non-finite state): the run ends there, ``outcome: diverged``."""
+
+
+class WallTimeoutExpired(BaseException):
+    """SIGALRM at ``wall_timeout`` wall seconds (``run --wall-timeout``, a sweep's ``--timeout``),
+    raised wherever the process is: :func:`arm_wall_timeout`. :func:`run` turns it into a
+    :class:`ScenarioError`; raised before :func:`run` starts (importing, planning, sizing a
+    scenario), the caller says so."""
+
+
+# one simulated day: a run's --duration, or a scenario's motion_s, beyond it is refused
+MAX_DURATION_S = 86_400.0
+# a run's end (or a divergence) is raised again at the same instant, by the next step of the clock,
+# while user code swallows it: simulated time does not go past it (a loop that swallows it spins in
+# wall time until --wall-timeout)
+BOUND_REPEAT_US = 0
 
 
 def hold(H: Any, plan: Plan, scus: tuple[int, ...] = LEG_SCUS) -> None:
@@ -535,59 +553,140 @@ def plan(scenario: str | Scenario, T: float | None = None, motion: float | None 
 
 def run_plan(spec: Scenario, opts: RunOptions) -> Plan:
     """The plan a run of ``spec`` executes: the scenario's, with ``--control``'s type if given."""
-    the_plan = spec.plan(opts.T, opts.motion, opts.perna)
-    if opts.control is not None:
-        split = spec.double_support or the_plan.lead is not None
-        the_plan = the_plan.with_control(CONTROL_CHOICES[opts.control], split=split)
-    return the_plan
+    return _with_control(spec, spec.plan(opts.T, opts.motion, opts.perna), opts.control)
 
 
-def _arm_wall_timeout(seconds: float | None) -> Callable[[], None]:
-    """SIGALRM after ``seconds`` of wall time raises :class:`_WallTimeoutError` where the run is
-    (also in a host controller's ``time.sleep``); returns the function that disarms it. Main
-    thread only (elsewhere, and with None, nothing is armed)."""
+def _with_control(spec: Scenario, the_plan: Plan, control: str | None) -> Plan:
+    if control is None:
+        return the_plan
+    split = spec.double_support or the_plan.lead is not None
+    return the_plan.with_control(CONTROL_CHOICES[control], split=split)
+
+
+_wall: dict[str, Any] = {"armed": False, "previous": None}
+
+
+def wall_timeout_armed() -> bool:
+    """A wall-clock limit is armed in this process (:func:`arm_wall_timeout`)."""
+    return bool(_wall["armed"])
+
+
+def arm_wall_timeout(seconds: float | None) -> None:
+    """From now on, SIGALRM after ``seconds`` of wall time raises :class:`WallTimeoutExpired` where
+    the process is (also in a host controller's ``time.sleep``, a scenario's import or its
+    planning); the caller disarms it (:func:`disarm_wall_timeout`, in a ``finally``: the alarm
+    may already have fired inside this call). Nothing when ``seconds`` is None, off the main
+    thread, or when a limit is armed already (the CLI arms ``--wall-timeout`` at its first line,
+    :func:`run` keeps it). While the outputs are closed or renamed (``signals.deferred``) the
+    alarm waits for the next 0.5 s."""
     import signal
     import threading
 
-    if seconds is None or threading.current_thread() is not threading.main_thread():
-        return lambda: None
+    if seconds is None or _wall["armed"] or threading.current_thread() is not threading.main_thread():
+        return
+    from humanoid_twin import signals
 
     fired = [0]
 
     def on_alarm(signum: int, frame: Any) -> None:
+        if signals.deferring():          # a file's last write and rename: not cut in the middle
+            return
         # raised again every 0.5 s while user code swallows it; after 5 s of that, the process
         # ends (one line, temporary files removed, exit 1): humanoid_twin/signals.hard_exit
         fired[0] += 1
         if fired[0] > 10:
-            from humanoid_twin.signals import hard_exit
+            signals.hard_exit(1, f"humanoid-twin: the run took more than {seconds:g} wall seconds "
+                              "(--wall-timeout) and user code swallowed the stop: ended at once")
+        raise WallTimeoutExpired
 
-            hard_exit(1, f"humanoid-twin: the run took more than {seconds:g} wall seconds (--wall-timeout) "
-                      "and user code swallowed the stop: ended at once")
-        raise _WallTimeoutError
-
-    previous = signal.signal(signal.SIGALRM, on_alarm)
-    signal.setitimer(signal.ITIMER_REAL, seconds, 0.5)
-
-    def disarm() -> None:
-        signal.setitimer(signal.ITIMER_REAL, 0)
-        signal.signal(signal.SIGALRM, previous if previous is not None else signal.SIG_DFL)
-
-    return disarm
+    _wall["previous"] = signal.signal(signal.SIGALRM, on_alarm)
+    _wall["armed"] = True
+    # at least 1 us: a smaller value would be rounded to 0, which disarms the interval timer
+    signal.setitimer(signal.ITIMER_REAL, max(float(seconds), 1e-6), 0.5)
 
 
-def _arm_host_bound(twin: Twin, duration: float) -> dict[str, Any]:
-    """From ``duration`` on, every 20 ms of the clock raises :class:`_HostBoundReachedError`
-    while the returned dict's ``armed`` is true: a host controller cannot run the twin past the
-    run's end, even one that swallows the first (``except BaseException``)."""
-    state: dict[str, Any] = {"armed": True}
+def disarm_wall_timeout() -> None:
+    """Disarm :func:`arm_wall_timeout`'s limit (nothing when none is armed)."""
+    import signal
 
-    def bound() -> None:
-        if state["armed"]:
-            twin.clock.schedule(twin.clock.now_us + 20_000, bound)
-            raise _HostBoundReachedError
+    if not _wall["armed"]:
+        return
+    signal.setitimer(signal.ITIMER_REAL, 0)
+    previous = _wall["previous"]
+    signal.signal(signal.SIGALRM, previous if previous is not None else signal.SIG_DFL)
+    _wall["armed"] = False
 
-    twin.clock.schedule(max(round(duration * US_PER_S), twin.clock.now_us), bound)
-    return state
+
+class _Bound:
+    """A run's end (or its divergence) on the twin's clock: from :meth:`arm`'s instant on, the clock
+    raises ``error`` while armed, again at each step user code asks of it after swallowing it
+    (``except BaseException``: :data:`BOUND_REPEAT_US`); ``fired``: it was raised at least once."""
+
+    def __init__(self, twin: Twin, error: type[BaseException]) -> None:
+        self.twin, self.error = twin, error
+        self.armed = self.fired = False
+        self.at_us: int | None = None
+
+    def arm(self, t_s: float) -> None:
+        at = max(round(t_s * US_PER_S), self.twin.clock.now_us)
+        if self.armed and self.at_us == at:
+            return
+        self.armed, self.at_us = True, at
+        self.twin.clock.schedule(at, self._fire)
+
+    def disarm(self) -> None:
+        self.armed = False
+
+    def _fire(self) -> None:
+        if self.armed and self.twin.clock.now_us >= (self.at_us or 0):
+            self.fired = True
+            self.twin.clock.schedule(self.twin.clock.now_us + BOUND_REPEAT_US, self._fire)
+            raise self.error
+
+
+def _arm_host_bound(twin: Twin, duration: float) -> _Bound:
+    """From ``duration`` on, the clock raises :class:`_HostBoundReachedError` while the returned
+    bound is armed: a host controller cannot run the twin past the run's end, even one that
+    swallows it (``except BaseException``)."""
+    bound = _Bound(twin, _HostBoundReachedError)
+    bound.arm(duration)
+    return bound
+
+
+def check_motion_s(value: Any, label: str) -> float:
+    """A scenario's ``motion_s`` checked like ``--duration``: a number of simulated seconds, finite,
+    0..:data:`MAX_DURATION_S`; :class:`ScenarioInputError` (one line naming the scenario)
+    otherwise. Its ``float`` is judged as user code (it may raise)."""
+    import numbers
+
+    why = None
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+        why = f"returned {short_repr(value, 60)} ({type(value).__name__}): not a number of seconds"
+    else:
+        try:
+            seconds = float(value)
+        except BaseException as exc:       # noqa: BLE001 - a user's number: judged, not trusted
+            if not user_fault(exc):
+                raise
+            seconds, why = math.nan, f"returned a number whose float() raised {describe(exc)}"
+        if why is None and not (math.isfinite(seconds) and 0 <= seconds <= MAX_DURATION_S):
+            why = (f"returned {short_repr(value, 60)}: must be a finite number of simulated seconds, "
+                   f"0..{MAX_DURATION_S:g} (as --duration)")
+    if why is not None:
+        raise ScenarioInputError(f"scenario {label}: its motion_s {why}")
+    return seconds
+
+
+def scenario_motion_s(spec: Scenario, plan: Plan, label: str) -> float:
+    """``spec.motion_s(plan)``, checked (:func:`check_motion_s`): a user's scenario that raises
+    there is a :class:`ScenarioError` naming it (one line), never a traceback."""
+    try:
+        value = spec.motion_s(plan)
+    except BaseException as exc:
+        if is_builtin(spec) or not user_fault(exc):
+            raise
+        raise ScenarioError(f"scenario {label} raised {describe(exc)} in its motion_s") from None
+    return check_motion_s(value, label)
 
 
 def _after_boot_s(motion_s: float, tilt: float) -> float:
@@ -599,11 +698,31 @@ def expected_run_s(scenario: str | Scenario, duration: float | None = None, T: f
                    motion: float | None = None, perna: int = 1, tilt: float = 0.0) -> float:
     """How long a run lasts at most, in simulated seconds, known before it starts: ``duration``
     when given, else the boot's bound (:data:`BOOT_TIMEOUT_S`) + the motion or the tilt + the
-    settling (what the CLI sizes the outputs' disk space by)."""
+    settling (what the CLI sizes the outputs' disk space by). The run is cut there whatever its
+    program does. A scenario's ``motion_s`` is checked (:func:`check_motion_s`)."""
     if duration is not None:
         return duration
     spec = load_scenario(scenario)
-    return BOOT_TIMEOUT_S + _after_boot_s(spec.motion_s(spec.plan(T, motion, perna)), tilt)
+    label = scenario_name(scenario)
+    the_plan = scenario_plan(spec, label, T, motion, perna)
+    return BOOT_TIMEOUT_S + _after_boot_s(scenario_motion_s(spec, the_plan, label), tilt)
+
+
+def scenario_plan(spec: Scenario, label: str, T: float | None, motion: float | None, perna: int,
+                   control: str | None = None) -> Plan:
+    """:func:`run_plan` of a scenario (its name as given: ``label``): a ``ValueError`` (the planners'
+    own limits: ``--T`` fits one byte of 20 ms ticks, each joint's range ...) is a
+    :class:`ScenarioInputError`; anything else a user's factory raises, a :class:`ScenarioError`
+    naming it (one line)."""
+    try:
+        the_plan = spec.plan(T, motion, perna)
+    except ValueError as exc:
+        raise ScenarioInputError(f"{label}: {describe(exc) if not is_builtin(spec) else exc}") from None
+    except BaseException as exc:
+        if is_builtin(spec) or not user_fault(exc):
+            raise
+        raise ScenarioError(f"scenario {label} raised {describe(exc)} in its plan") from None
+    return _with_control(spec, the_plan, control)
 
 
 def run(opts: RunOptions, on_progress: Callable[[float, float | None], None] | None = None,
@@ -612,42 +731,71 @@ def run(opts: RunOptions, on_progress: Callable[[float, float | None], None] | N
 
     ``on_progress(t_s, end_s)`` is called every 0.1 s of virtual time: ``end_s`` is None during
     the boot (its length is not known in advance), then the run's end time. ``on_twin(twin)`` is
-    called once the twin is built, before anything is written (``run --viewer`` attaches there)."""
-    spec = with_fields(load_scenario(opts.scenario), opts.scenario_fields)
-    label = scenario_name(opts.scenario)
-    the_plan = run_plan(spec, opts)
-    motion_s = spec.motion_s(the_plan)
-    host_step = load_host_controller(opts.host_controller) if opts.host_controller is not None else None
-    expected_s = expected_run_s(spec, opts.duration, opts.T, opts.motion, opts.perna, opts.tilt)
-    wall0 = time.perf_counter()
-    disarm = _arm_wall_timeout(opts.wall_timeout)
+    called once the twin is built, before anything is written (``run --viewer`` attaches there).
+
+    The run ends at its duration (``opts.duration``, or boot + ``motion_s`` or the tilt + 2 s)
+    whatever the scenario's program does (``completed: false`` when it was cut, in the boot
+    too); ``opts.wall_timeout`` is armed from this function's first line; a simulation that
+    diverges ends the run there (``outcome: diverged``)."""
+    outer = wall_timeout_armed()
     rig: Rig | None = None
     try:
-        with _open_rig(opts, expected_s, on_twin, on_progress) as rig:
-            rig.boot()                                   # time advances here: the boot
-            boot_s = rig.now_s
-            duration = rig.end_s = _duration(opts, boot_s, motion_s)
-            completed, host_calls = True, None
-            if duration < boot_s + motion_s:
-                _cut_at(rig, duration)                   # --duration ends inside the program
-            try:
-                if rig.host_error is None and (not spec.moves or duration > rig.now_s):
-                    _drive(spec, rig, the_plan, label)   # time advances here: the scenario's program
-                if host_step is not None and rig.host_error is None:
-                    host_calls = _host_controller(rig, host_step, duration, opts.host_period_ms)
-                rig.sleep_until(duration)                # time advances here: the robot settles
-            except _DurationReachedError:
-                completed = False                        # --duration fell inside the program: cut there
-            summary = build_summary(rig, label, the_plan, completed=completed,
-                                    wall_s=time.perf_counter() - wall0, host_calls=host_calls)
+        arm_wall_timeout(opts.wall_timeout)      # from the first line: loading, planning, sizing
+        spec = with_fields(load_scenario(opts.scenario), opts.scenario_fields)   # --set scenario.FIELD=V
+        label = scenario_name(opts.scenario)
+        the_plan = scenario_plan(spec, label, opts.T, opts.motion, opts.perna, opts.control)
+        motion_s = scenario_motion_s(spec, the_plan, label)
+        host_step = load_host_controller(opts.host_controller) if opts.host_controller is not None else None
+        expected_s = (opts.duration if opts.duration is not None
+                      else BOOT_TIMEOUT_S + _after_boot_s(motion_s, opts.tilt))
+        wall0 = time.perf_counter()
+        # MuJoCo's instability warning is the run's divergence, reported once (the summary's
+        # ``diverged``) rather than as a warning line of its own
+        with quiet_instability_warnings(), _open_rig(opts, expected_s, on_twin, on_progress) as rig:
+            summary = _run_rig(rig, opts, spec, label, the_plan, motion_s, host_step, wall0)
         note_recording(summary, rig)
         return summary
-    except _WallTimeoutError:
+    except WallTimeoutExpired:
         now = rig.now_s if rig is not None else 0.0
+        where = f"at t={now:.3f} s simulated" if rig is not None else "before the twin started"
         raise ScenarioError(f"the run took more than {opts.wall_timeout:g} wall seconds (--wall-timeout): "
-                            f"stopped at t={now:.3f} s simulated") from None
+                            f"stopped {where}") from None
     finally:
-        disarm()
+        if not outer:
+            disarm_wall_timeout()
+
+
+def _run_rig(rig: Rig, opts: RunOptions, spec: Scenario, label: str, the_plan: Plan, motion_s: float,
+             host_step: Callable[..., Any] | None, wall0: float) -> dict[str, Any]:
+    """boot -> drive -> host controller -> settle on an assembled rig, then the summary. The
+    run's end is armed before the boot when ``--duration`` is given (faults that stretch the boot
+    past it cut the boot: ``boot_s`` None), else at the boot's end; a divergence ends the run."""
+    end = _Bound(rig.twin, _DurationReachedError)
+    diverged = _Bound(rig.twin, _DivergedError)
+    rig.monitor.on_diverged = lambda: diverged.arm(rig.now_s)
+    if opts.duration is not None:
+        end.arm(opts.duration)
+    completed, host_calls = True, None
+    try:
+        rig.boot()                                   # time advances here: the boot
+        duration = rig.end_s = _duration(opts, rig.now_s, motion_s)
+        end.arm(duration)
+        if rig.host_error is None and (not spec.moves or duration > rig.now_s):
+            _drive(spec, rig, the_plan, label)       # time advances here: the scenario's program
+        end.disarm()
+        completed = not end.fired                    # a program that swallowed its cut
+        if host_step is not None and rig.host_error is None:
+            host_calls = _host_controller(rig, host_step, duration, opts.host_period_ms)
+        rig.sleep_until(duration)                    # time advances here: the robot settles
+    except _DurationReachedError:
+        completed = False                            # the run's end fell inside the boot or the program
+    except _DivergedError:
+        completed = False                            # the physics is no longer a simulation: ended here
+    finally:
+        end.disarm()
+        diverged.disarm()
+    return build_summary(rig, label, the_plan, completed=completed,
+                         wall_s=time.perf_counter() - wall0, host_calls=host_calls)
 
 
 def _open_rig(opts: RunOptions, expected_s: float, on_twin: Callable[[Any], None] | None,
@@ -662,18 +810,7 @@ def _duration(opts: RunOptions, boot_s: float, motion_s: float) -> float:
     """The run's end (virtual s): ``--duration``, or the boot + the program or the tilt + settling."""
     if opts.duration is None:
         return boot_s + _after_boot_s(motion_s, opts.tilt)
-    if opts.duration < boot_s:
-        raise ScenarioInputError(
-            f"--duration {opts.duration:g} is shorter than the boot ({boot_s:.3f} simulated seconds "
-            "from power-on): give at least that")
     return opts.duration
-
-
-def _cut_at(rig: Rig, duration: float) -> None:
-    def cut() -> None:
-        raise _DurationReachedError
-
-    rig.twin.clock.schedule(round(duration * US_PER_S), cut)
 
 
 def _drive(spec: Scenario, rig: Rig, the_plan: Plan, label: str) -> None:
@@ -709,7 +846,7 @@ def _host_controller(rig: Rig, step: Callable[..., Any], duration: float, period
     except RuntimeError as exc:
         raise ScenarioError(str(exc)) from exc
     finally:
-        bound["armed"] = False
+        bound.disarm()
 
 
 __all__ = ["RunOptions", "outcome", "SLIP_HELD_MM", "SUMMARY_KEYS", "summary_keys_markdown", "Monitor",
@@ -718,5 +855,7 @@ __all__ = ["RunOptions", "outcome", "SLIP_HELD_MM", "SUMMARY_KEYS", "summary_key
            "ENTRY_POINT_GROUP", "boot", "hold", "BootError", "ScenarioError", "ScenarioInputError",
            "ScenarioLoadError", "SCENARIOS", "with_fields", "own_fields", "SCENARIO_FIELD_PREFIX",
            "CONTROL_CHOICES", "plan", "run", "run_plan", "tilt_profile",
-           "expected_run_s",
+           "expected_run_s", "MAX_DURATION_S", "check_motion_s", "scenario_motion_s",
+           "scenario_plan", "WallTimeoutExpired", "arm_wall_timeout", "disarm_wall_timeout",
+           "wall_timeout_armed",
            "Rig", "RigOptions", "BOOT_TIMEOUT_S", "TILT_RATE_DEG_S", "SETTLE_S", "BOOT_MIN_S"]

@@ -21,7 +21,7 @@ from types import FrameType
 from typing import Any
 
 __all__ = ["Interrupted", "Terminated", "EXIT_CODES", "install", "restore", "deferred", "pending",
-           "exit_code", "is_signal", "signal_cause", "on_hard_exit", "hard_exit"]
+           "deferring", "exit_code", "is_signal", "signal_cause", "on_hard_exit", "hard_exit"]
 
 
 class Interrupted(KeyboardInterrupt):
@@ -73,6 +73,12 @@ def restore(exiting: bool = False) -> None:
 def pending() -> int:
     """How many signals arrived during the current :func:`deferred` block (0: none)."""
     return len(_state["pending"])
+
+
+def deferring() -> bool:
+    """A :func:`deferred` block is running (the outputs' last writes and renames): the run's
+    wall-clock limit waits too (``scenarios.arm_wall_timeout``)."""
+    return _state["depth"] > 0
 
 
 def is_signal(exc: BaseException) -> bool:

@@ -39,14 +39,14 @@ def build_summary(rig: Rig, scenario: str, plan: Plan, *, completed: bool, wall_
         "fell_at_s": monitor.fell_at_s,
         "trunk_tilt_max_deg": round(monitor.trunk_tilt_max_deg, 3),
         "slip_mm": round(monitor.slip_mm, 1),
-        "outcome": outcome(monitor.fell, monitor.slip_mm),
+        "outcome": "diverged" if monitor.diverged is not None else outcome(monitor.fell, monitor.slip_mm),
         "cop_margin_min_mm": _finite(monitor.cop_margin_min_mm),
         "cop_error_rms_mm": _round(monitor.cop_error_rms_mm),
         "wall_s": round(wall_s, 3),
         "rtf": round(twin.now_s / wall_s, 3) if wall_s > 0 else None,
         "can_frames": twin.network.frames_sent,
         "serial_frames": twin.master.stats()["serial_frames_received"],
-        "boot_s": round(rig.boot_s or 0.0, 3),
+        "boot_s": None if rig.boot_s is None else round(rig.boot_s, 3),
         "completed": completed,
         "tilt_deg": opts.tilt,
         "control": _control_label(plan),
@@ -66,6 +66,8 @@ def build_summary(rig: Rig, scenario: str, plan: Plan, *, completed: bool, wall_
     not_started = [s.as_dict() for s in opts.faults if not _started(s, rig)]
     if not_started:
         summary["injected_not_started"] = not_started
+    if monitor.diverged is not None:
+        summary["diverged"] = f"t={monitor.diverged_at_s:.3f} s: {monitor.diverged}"
     if rig.host_error is not None:
         summary["host_error"] = rig.host_error
     law_faults = [sl.servo.law_fault for sl in twin.slaves.values() if sl.servo.law_fault is not None]
@@ -116,7 +118,8 @@ SUMMARY_KEYS: dict[str, str] = {
                "(since the run began, or since that foot was last set down): feet sliding down a "
                "tilted platform, not a fall",
     "outcome": "the run in one word: `fell`; `slid` (not fallen, but `slip_mm` reached 10 mm: a foot "
-               "rolling onto an edge of its pads moves a few mm without sliding); `held`",
+               "rolling onto an edge of its pads moves a few mm without sliding); `held`; `diverged` (the "
+               "simulation blew up, see `diverged`: the run ended there, exit code 1; not a result)",
     "cop_margin_min_mm": "smallest signed distance of the ground-truth CoP (MuJoCo contact forces) inside "
                          "the support polygon (hull of the foot pads in contact), sampled every 20 ms; "
                          "negative when outside; **-1000** when at some sample no pad touched the "
@@ -128,8 +131,10 @@ SUMMARY_KEYS: dict[str, str] = {
     "rtf": "real-time factor: simulated / wall seconds",
     "can_frames": "frames on the CAN wire",
     "serial_frames": "RS-232 requests the Master received",
-    "boot_s": "when the boot ended (virtual seconds)",
-    "completed": "false when `--duration` cut the motion before its end, else true",
+    "boot_s": "when the boot ended (virtual seconds); none when the run ended before it did (faults "
+              "stretched the boot past `--duration`)",
+    "completed": "false when the run's end (`--duration`, or the default one) cut the boot or the "
+                 "scenario's program before its end, or the simulation diverged; else true",
     "tilt_deg": "the platform's tilt asked for (`--tilt`)",
     "control": "the control type(s) the leg boards (SCU 1-2) ran, `+` between them: the scenario's "
                "own (`stand`: `balance`) or `--control`'s",
@@ -156,6 +161,8 @@ SUMMARY_KEYS: dict[str, str] = {
     "faults": "the faults the supervisor latched: name, node, time, detail each",
     "injected": "the `--fault` specs injected that started (docs/supervisor.md)",
     "injected_not_started": "only when some `--fault` starts beyond the run's end: those specs",
+    "diverged": "only when the simulation diverged (MuJoCo's instability warning: a NaN, an infinite or a "
+                "huge value in the state, which MuJoCo then resets; or a non-finite state): when and why",
     "host_error": "only when a host request failed while the supervisor was stopped or faults were "
                   "injected: that request's error (the run went on)",
     "law_faults": "only when a control law raised or returned a bad value: which law, board, time "

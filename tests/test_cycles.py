@@ -47,7 +47,8 @@ def test_default_clock_budget_holds_with_room(booted_twin):
 def test_an_overrun_sets_the_deadline_flag_and_skips_the_missed_tick():
     """At 0.5 MHz the first pass of a board takes more than its period: the ticks that come
     while it runs are skipped (the next waitTick returns at the following period), the flag
-    is set when the pass ends and the status byte the Master reads shows it."""
+    is set when its period ends, the pass still running (issue 36: not when the pass ends, which
+    may lie beyond the run), and the status byte the Master reads shows it from then on."""
     with Twin(seed=0, pic_mhz=0.5) as twin:
         s = twin.slaves[6]
         t0 = s.next_tick_us()
@@ -55,10 +56,12 @@ def test_an_overrun_sets_the_deadline_flag_and_skips_the_missed_tick():
         assert s.ticks == 1
         end = t0 + s.task_us
         assert s.task_us > hardware.PWM_PERIOD_US
-        twin.advance_to(end - 1)
+        twin.advance_to(t0 + hardware.PWM_PERIOD_US - 1)
         assert not _status(s) & STATUS_DEADLINE and s.deadline_violations == 0
-        twin.advance_to(end)
+        twin.advance_to(t0 + hardware.PWM_PERIOD_US)
         assert _status(s) & STATUS_DEADLINE and s.deadline_violations == 1
+        twin.advance_to(end)
+        assert _status(s) & STATUS_DEADLINE and s.deadline_violations == 1     # counted once
         nxt = t0 + math.ceil((end - t0 + 1) / hardware.PWM_PERIOD_US) * hardware.PWM_PERIOD_US
         twin.advance_to(nxt - 1)
         assert s.ticks == 1 and s.ticks_skipped == (nxt - t0) // hardware.PWM_PERIOD_US - 1

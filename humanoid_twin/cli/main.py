@@ -207,7 +207,6 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-MAX_DURATION_S = 86_400.0   # one simulated day: --duration beyond this is refused
 MIN_FREE_BYTES = 8 * 2**20  # a run's outputs need at least this much free disk besides their own size
 EXIT_INTERRUPTED = 130      # SIGINT (Ctrl-C)
 EXIT_TERMINATED = 143       # SIGTERM (timeout, CI runners, docker stop)
@@ -358,8 +357,14 @@ def check_run_inputs(args: argparse.Namespace, load: bool = True) -> dict[str, A
     shares with ``serve`` (:func:`~humanoid_twin.cli.options.check_rig_inputs`). Returns the
     loaded controllers; ``load`` False: the ``--law`` s and ``--host-controller`` are not imported
     again (a sweep's later grid points)."""
-    from humanoid_twin.containment import describe, user_fault
-    from humanoid_twin.scenarios import BOOT_MIN_S, is_builtin
+    from humanoid_twin.scenarios import (
+        BOOT_MIN_S,
+        MAX_DURATION_S,
+        ScenarioError,
+        ScenarioInputError,
+        scenario_motion_s,
+        scenario_plan,
+    )
 
     if args.no_record and args.out is not None:
         raise _usage_error(f"--no-record and --out {args.out} contradict each other: drop one")
@@ -371,27 +376,49 @@ def check_run_inputs(args: argparse.Namespace, load: bool = True) -> dict[str, A
     from humanoid_twin.cli.params import scenario_with_fields
 
     spec = scenario_with_fields(load_scenario_arg(args.scenario), args)    # --set scenario.FIELD=V
-    where = "plan"
-    try:   # the planners' own limits (T fits one byte of 20 ms ticks, each joint's range ...)
-        plan = spec.plan(args.T, args.motion, args.perna)
-        where = "motion_s"      # what sizes the outputs' disk space (expected_run_s), before a run
-        spec.motion_s(plan)
-    except ValueError as exc:
-        if where != "plan" and not is_builtin(spec):
-            sys.stderr.write(f"humanoid-twin: scenario {args.scenario} raised {describe(exc)} "
-                             f"in its {where}\n")
-            raise SystemExit(1) from None
-        raise _usage_error(f"{args.scenario}: {exc}") from None
-    except BaseException as exc:
-        if is_builtin(spec) or not user_fault(exc):
-            raise
-        sys.stderr.write(f"humanoid-twin: scenario {args.scenario} raised {describe(exc)} in its {where}\n")
+    try:   # the planners' own limits (T fits one byte of 20 ms ticks, each joint's range ...), and
+        # the scenario's length (motion_s, checked like --duration: it sizes the outputs' disk space)
+        scenario_motion_s(spec, scenario_plan(spec, args.scenario, args.T, args.motion, args.perna),
+                          args.scenario)
+    except ScenarioInputError as exc:
+        raise _usage_error(str(exc)) from None
+    except ScenarioError as exc:       # the user's own code raised (its plan, its motion_s)
+        sys.stderr.write(f"humanoid-twin: {_one_line(str(exc))}\n")
         raise SystemExit(1) from None
     return check_rig_inputs(args, load=load)
 
 
 def cmd_run(args: argparse.Namespace) -> int:
-    """``humanoid-twin run``."""
+    """``humanoid-twin run``: ``--wall-timeout`` is armed from its first line (importing, planning
+    and sizing the scenario included: a user's loop there ends in one line, exit 1)."""
+    from humanoid_twin.scenarios import WallTimeoutExpired, arm_wall_timeout, disarm_wall_timeout
+
+    try:
+        arm_wall_timeout(args.wall_timeout)
+        return _cmd_run(args)
+    except (WallTimeoutExpired, Exception) as exc:
+        # outside the simulation (scenarios.run reports its own); an alarm that landed in the
+        # import of an extension module comes out of it as an ImportError caused by it
+        if not any(isinstance(e, WallTimeoutExpired) for e in _causes(exc)):
+            raise
+        sys.stderr.write(f"humanoid-twin: the run took more than {args.wall_timeout:g} wall seconds "
+                         "(--wall-timeout): stopped while loading, planning or sizing the scenario\n")
+        return 1
+    finally:
+        disarm_wall_timeout()
+
+
+def _causes(exc: BaseException, limit: int = 20) -> list[BaseException]:
+    """``exc`` and the exceptions it was raised from or during, nearest first (at most ``limit``)."""
+    out: list[BaseException] = []
+    cur: BaseException | None = exc
+    while cur is not None and len(out) < limit:
+        out.append(cur)
+        cur = cur.__cause__ or cur.__context__
+    return out
+
+
+def _cmd_run(args: argparse.Namespace) -> int:
     controllers = check_run_inputs(args)
     if args.viewer:
         from humanoid_twin.cli.live_viewer import LiveViewerError, check_display
@@ -400,8 +427,15 @@ def cmd_run(args: argparse.Namespace) -> int:
             check_display()
         except LiveViewerError as exc:
             raise _usage_error(str(exc)) from None
-    from humanoid_twin.scenarios import expected_run_s, recording_name
+    from humanoid_twin.scenarios import ScenarioError, ScenarioInputError, expected_run_s, recording_name
 
+    try:    # what sizes the outputs' disk space: a user's motion_s, called (and checked) again
+        expected_s = expected_run_s(args.scenario, args.duration, args.T, args.motion, args.perna, args.tilt)
+    except ScenarioInputError as exc:
+        raise _usage_error(str(exc)) from None
+    except ScenarioError as exc:
+        sys.stderr.write(f"humanoid-twin: {_one_line(str(exc))}\n")
+        return 1
     # --out was checked with the other inputs; the default name ends in .rrd
     out = None if args.no_record else (args.out or Path(recording_name(args.scenario)))
     outputs = _Outputs()
@@ -409,8 +443,7 @@ def cmd_run(args: argparse.Namespace) -> int:
 
     signals.on_hard_exit(outputs.discard)     # --wall-timeout against code that swallows the stop
     try:
-        files = outputs.open_all(out, args, expected_run_s(args.scenario, args.duration, args.T,
-                                                           args.motion, args.perna, args.tilt))
+        files = outputs.open_all(out, args, expected_s)
         return _run(args, run_options(args, controllers, files), outputs)
     finally:
         outputs.discard()       # whatever was not committed
@@ -419,7 +452,7 @@ def cmd_run(args: argparse.Namespace) -> int:
 def _run(args: argparse.Namespace, opts: Any, outputs: _Outputs) -> int:
     from humanoid_twin import signals
     from humanoid_twin.recording.readback import RrdReadError
-    from humanoid_twin.scenarios import ScenarioError, ScenarioInputError, run
+    from humanoid_twin.scenarios import ScenarioError, ScenarioInputError, disarm_wall_timeout, run
 
     bar = None
     if opts.progress:
@@ -433,8 +466,11 @@ def _run(args: argparse.Namespace, opts: Any, outputs: _Outputs) -> int:
 
         live, viewer_errors = LiveViewer(), (LiveViewerError,)
     try:
-        summary = run(opts, on_progress=None if bar is None else bar.update,
-                      on_twin=None if live is None else live.attach)
+        try:
+            summary = run(opts, on_progress=None if bar is None else bar.update,
+                          on_twin=None if live is None else live.attach)
+        finally:
+            disarm_wall_timeout()        # the run is over: what is left is the CLI's own work
     except ScenarioInputError as exc:
         raise _usage_error(str(exc)) from None
     except ScenarioError as exc:
@@ -461,6 +497,17 @@ def _run(args: argparse.Namespace, opts: Any, outputs: _Outputs) -> int:
             bar.close()
         if live is not None:
             live.close()
+    if summary.get("outcome") == "diverged":
+        # not a result: no output replaced, the summary printed for the record, one line, exit 1
+        sys.stderr.write(f"humanoid-twin: the simulation diverged ({summary.get('diverged')}): the run "
+                         "ended there; its outputs are not written\n")
+        outputs.discard()
+        _print_summary(summary, args.json)
+        return 1
+    if summary.get("boot_s") is None:
+        sys.stderr.write(f"humanoid-twin: warning: the run ended at {summary['duration_s']:g} s (--duration) "
+                         "before the boot did (~2.65 s, longer under faults): the scenario's program did "
+                         "not run\n")
     replaced = "out" in outputs.final and outputs.final["out"].exists()
     outputs.commit()
     if "out" in outputs.final:

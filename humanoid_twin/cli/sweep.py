@@ -200,6 +200,7 @@ def _check_every_point(args: argparse.Namespace, parser: argparse.ArgumentParser
     import itertools
 
     from humanoid_twin.cli.main import check_run_inputs
+    from humanoid_twin.scenarios import arm_wall_timeout, disarm_wall_timeout
 
     names = list(params)
     loaded: set[tuple] = set()
@@ -210,7 +211,13 @@ def _check_every_point(args: argparse.Namespace, parser: argparse.ArgumentParser
                     *(run_arg(n, v) for n, v in zip(names, values, strict=True)), f"--seed={seed}"]
             ns = parser.parse_args(argv)
             key = (tuple(ns.law), ns.host_controller)
-            check_run_inputs(ns, load=key not in loaded)    # a --law / --host-controller loaded once
+            # each point's check (a user's scenario imported, planned and sized here) within
+            # --timeout, as each run is (its --wall-timeout is armed from its first line)
+            try:
+                arm_wall_timeout(args.timeout)
+                check_run_inputs(ns, load=key not in loaded)    # a --law / --host-controller loaded once
+            finally:
+                disarm_wall_timeout()
             loaded.add(key)
 
 
@@ -287,11 +294,18 @@ def check_ray_address(address: str) -> None:
 
 def sweep_command(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
     """``humanoid-twin sweep`` (``args.run_args``: the options for every run)."""
+    from humanoid_twin.scenarios import WallTimeoutExpired
+
     try:
         params, seeds, task = plan_sweep(args, parser)
     except SweepError as exc:
         sys.stderr.write(f"humanoid-twin: error: {exc}\n")
         return 2
+    except WallTimeoutExpired:
+        sys.stderr.write(f"humanoid-twin: checking a grid point took more than {args.timeout:g} wall seconds "
+                         f"(--timeout): loading, planning or sizing {args.scenario} does not end; no run "
+                         "started\n")
+        return 1
     if args.recordings is not None:
         args.recordings.mkdir(parents=True, exist_ok=True)
     points = randomized_grid(params, args.draws, seeds)     # the grid x the drawn robots x the seeds

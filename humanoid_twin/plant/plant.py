@@ -16,10 +16,11 @@ precomputed addresses and pre-drawn noise; ``advance_to`` runs all the physics s
 
 from __future__ import annotations
 
+import contextlib
 import math
 import numbers
 import sys
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from importlib import resources
 from pathlib import Path
 from typing import Any
@@ -49,6 +50,8 @@ HOLD_LIFT_MM = 100.0               # compare --support stand: the trunk held thi
 HOLD_ARMATURE = 1e9                # ... by an armature that makes its free joint immovable
 TILT_MAX_DEG = 45.0                # the platform tilts at most this far (either way)
 _TILT_MAX_DEG = TILT_MAX_DEG
+# MuJoCo's instability warnings: (MjData.warning index, the quantity it found non-finite or huge)
+_INSTABILITY = tuple((int(getattr(mujoco.mjtWarning, f"mjWARN_BAD{q}")), q) for q in ("QPOS", "QVEL", "QACC"))
 _TILT_PROFILE_CHUNK_US = 10_000    # a tilt profile is re-evaluated at least every 10 ms
 
 
@@ -65,8 +68,29 @@ def _route_mujoco_warnings() -> None:
         mujoco.set_mju_user_warning(_warn_on_stderr)
 
 
+# MuJoCo's instability warnings (a NaN, an infinite or a huge value in the state: it then resets
+# the state) are not written while a run reports them itself (``quiet_instability_warnings``:
+# ``scenarios.run`` ends with ``outcome: diverged`` and one line built from ``Plant.divergence``)
+_UNSTABLE_TEXT = "simulation is unstable"
+_quiet_instability = [0]
+
+
+@contextlib.contextmanager
+def quiet_instability_warnings() -> Iterator[None]:
+    """Within the block, MuJoCo's instability warnings are not written to stderr: the caller reports
+    the divergence itself (:meth:`Plant.divergence`)."""
+    _quiet_instability[0] += 1
+    try:
+        yield
+    finally:
+        _quiet_instability[0] -= 1
+
+
 def _warn_on_stderr(message: str) -> None:
-    sys.stderr.write(f"humanoid-twin: MuJoCo warning: {' '.join(message.split())}\n")
+    text = " ".join(message.split())
+    if _quiet_instability[0] and _UNSTABLE_TEXT in text:
+        return
+    sys.stderr.write(f"humanoid-twin: MuJoCo warning: {text}\n")
 
 
 def _load_model(path: Path | None, params: Mapping[str, float] | None = None
@@ -515,6 +539,23 @@ class Plant(BoardIO):
         self._truth_cached = self._truth.compute(self.t_us, self._tilt_deg)
         self._truth_key = key
         return self._truth_cached
+
+    def divergence(self) -> str | None:
+        """Why the physics is no longer a simulation, or None while it is one: MuJoCo found a NaN,
+        an infinite or a huge value in the positions, velocities or accelerations (its instability
+        warning; it then resets the state, which is no continuation of the run: its counters in
+        ``MjData.warning`` stay), or the state holds a non-finite number. A few counters and one
+        finiteness test: the monitor asks once per 20 ms sample, never per event."""
+        self._sync()
+        warning = self.data.warning
+        for kind, what in _INSTABILITY:
+            w = warning[kind]
+            if w.number:
+                return (f"MuJoCo: NaN, Inf or huge value in {what} at DOF {w.lastinfo} (its instability "
+                        "warning; the state was reset)")
+        if not (np.isfinite(self.data.qpos).all() and np.isfinite(self.data.qvel).all()):
+            return "a non-finite position or velocity in the state"
+        return None
 
     def soles_on_surface_mm(self) -> tuple[tuple[float, float, float], tuple[float, float, float]]:
         """Where each foot's sole origin is on the platform, in the platform's own frame (mm,

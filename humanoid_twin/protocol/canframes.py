@@ -47,6 +47,7 @@ if TYPE_CHECKING:  # cantools is imported lazily by load_dbc (it is slow to impo
     import cantools.database
 
 __all__ = [
+    "sensors1_with_status",
     "OP_ACTUATION",
     "OP_SENSORS",
     "MASTER_ADDRESS",
@@ -509,6 +510,16 @@ def pack_sensors1_fields(src: int, pos1: int, pos2: int, pos3: int, speed1: int,
         return _bytes8((src << _SF_SHIFT) | flags, pos1 & 0xFF, pos2 & 0xFF, pos3 & 0xFF,
                        speed1 & 0xFF, speed2 & 0xFF, speed3 & 0xFF, status)
     return pack_sensors1(src, (pos1, pos2, pos3), (speed1, speed2, speed3), status, flags)
+
+
+SENSORS1_STATUS_BYTE = 7        # the Status byte's place in Sensors 1 (slide 20), last
+
+
+def sensors1_with_status(data: bytes, bits: int) -> bytes:
+    """The Sensors 1 payload ``data`` with ``bits`` (``STATUS_*``) also set in its Status byte."""
+    b = _payload(data, "Sensors1")
+    i = SENSORS1_STATUS_BYTE
+    return b[:i] + bytes((b[i] | (bits & 0xFF),)) + b[i + 1:]
 
 
 def unpack_sensors1(data: bytes) -> tuple[int, int, tuple[int, int, int], tuple[int, int, int], int]:

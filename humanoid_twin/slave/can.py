@@ -34,12 +34,13 @@ from humanoid_twin.protocol.canframes import (
     PayloadError,
     pack_sensors1_fields,
     pack_sensors2_fields,
+    sensors1_with_status,
     slave_filters,
     status_byte,
     unpack_actuation1_into,
     unpack_actuation2_into,
 )
-from humanoid_twin.protocol.wire import ErrorState, node_name
+from humanoid_twin.protocol.wire import STATUS_DEADLINE, ErrorState, node_name
 from humanoid_twin.slave.database import Global
 
 if TYPE_CHECKING:
@@ -275,6 +276,12 @@ class SlaveCan:
             self.bus_off_seen = True
             return True
         return False
+
+    def flag_deadline(self) -> None:
+        """The deadline bit (status bit 5) set in the prepared Sensors 1 packet, which ``lowISR``
+        answers with: PIC2's period interrupt found the main loop's pass still running
+        (docs/firmware.md, "Cycle budget"); the rest of the packet stays the pass before's."""
+        self.payload[0] = sensors1_with_status(self.payload[0], STATUS_DEADLINE)
 
     def prepareSensorPackets(self) -> None:
         """Build both sensor packets from the sensor database (main loop, once per tick)."""

@@ -379,13 +379,15 @@ def load_law(ref: str) -> LawFactory:
     return obj
 
 
-def _check_cost(law: Any, name: str) -> None:
-    """:class:`LawError` when ``law`` declares a cost (``cycles``) that is not one or raises."""
+def _check_cost(law: Any, name: str, ctype: int = ControlType.BALANCE_CONTROL) -> tuple[int, bool]:
+    """``law``'s cost, ``(cycles per call, declared)`` (:func:`~humanoid_twin.cycles.law_cycles`,
+    asked once: a ``cycles()`` is user code, whose next answer may differ); :class:`LawError` when
+    it declares a cost (``cycles``) that is not one or raises."""
     from humanoid_twin.containment import describe, user_fault
     from humanoid_twin.cycles import law_cycles
 
     try:
-        law_cycles(law, ControlType.BALANCE_CONTROL)   # the type: the cost of a law declaring none
+        return law_cycles(law, ctype)              # the type: the cost of a law declaring none
     except BaseException as exc:       # a user's cycles: not a cost, or it raised
         if not user_fault(exc):
             raise
@@ -430,7 +432,7 @@ def install_laws(twin: Any, laws: Mapping[int | str, Any] | Iterable[tuple[int |
     from humanoid_twin.containment import describe, user_fault
     from humanoid_twin.cycles import note_default_cost
 
-    first: list[tuple[Any, int]] = []       # one instance per type: its cost said once, at the end
+    first: list[tuple[Any, int, tuple[int, bool]]] = []   # one instance per type: its cost said once
     for ctype, factory in resolve_laws(laws).items():
         for slave in twin.slaves.values():
             try:
@@ -440,8 +442,11 @@ def install_laws(twin: Any, laws: Mapping[int | str, Any] | Iterable[tuple[int |
                     raise
                 raise LawError(f"law {getattr(factory, '__qualname__', '?')!s:.80} cannot be made for "
                                f"SCU {slave.address}: {describe(exc)}") from None
-            _check_cost(law, getattr(factory, "__qualname__", "?"))
-            slave.servo.set_law(ctype, law)
-        first.append((law, ctype))
-    for law, ctype in first:
-        note_default_cost(law, ctype)
+            # each board's instance asked its cost once; the board keeps that answer (issue 36:
+            # a cycles() valid for the first check and invalid here was a traceback)
+            cost = _check_cost(law, f"{getattr(factory, '__qualname__', '?')!s:.80} for SCU {slave.address}",
+                               ctype)
+            slave.servo.set_law(ctype, law, cycles=cost[0])
+        first.append((law, ctype, cost))
+    for law, ctype, cost in first:
+        note_default_cost(law, ctype, cost)

@@ -66,6 +66,7 @@ cdef class Slave:
     cdef public bint _overran
     cdef public bint _pass_late
     cdef public object _finish_cb
+    cdef public object _overrun_cb
     cdef public long long _due_us
     cdef public long long _delay_us
     cdef public long long _delay_ticks
@@ -91,5 +92,6 @@ cdef class Slave:
     cpdef loop(self)
     @cython.locals(can_=SlaveCan)
     cpdef _finish(self)
+    cpdef _overrun(self)
     @cython.locals(calib=Calibration, pic=Pic2, act=Actuators, i=cython.long)
     cpdef _calibration_step(self)

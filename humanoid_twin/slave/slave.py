@@ -125,6 +125,7 @@ class Slave:
         self._overran = False
         self._pass_late = False
         self._finish_cb = self._finish
+        self._overrun_cb = self._overrun
         self._due_us = 0
         self._delay_us = 0
         self._delay_ticks = 0
@@ -312,6 +313,7 @@ class Slave:
         end = now + us
         if end >= self._due_us + PWM_PERIOD_US:
             self.busy_until_us = end
+            self.clock.schedule(self._due_us + PWM_PERIOD_US, self._overrun_cb)
         if us <= PWM_BUSY_US:
             self._finish()
         else:
@@ -328,13 +330,21 @@ class Slave:
             self._outputs_due = False
             self.pic.servoActuation(self.servo.output)
         self._overran = self.clock.now_us >= self._due_us + PWM_PERIOD_US
-        if self._overran:
-            if not self._pass_late:           # a late pass is counted once
-                self.deadline_violations += 1
+        if self._overran:                     # counted, and said, when the period ended: _overrun
             self.sensors.sysStatus.deadlineError = True
         can_ = self.can
         can_.prepareSensorPackets()
         can_.bus_off_seen = False
+
+    def _overrun(self) -> None:
+        """The PWM period ends with the pass still running (its work overran): PIC2's period
+        interrupt sets ``deadlineError`` now, and the status byte ``lowISR`` answers with says it
+        from now on, however long the pass still takes (a law declaring 200 000 000 cycles, 20 s
+        at 10 MIPS, was seen only at its end: never, in a shorter run). Counted once per pass."""
+        if not self._pass_late:               # a late pass is counted once
+            self.deadline_violations += 1
+        self.sensors.sysStatus.deadlineError = True
+        self.can.flag_deadline()
 
     def _calibration_step(self) -> None:
         """``calibration`` (table 8), one tick of it (see ``servo.Calibration``)."""
