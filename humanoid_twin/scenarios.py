@@ -57,6 +57,7 @@ from humanoid_twin.rig import (
     boot,
     tilt_profile,
 )
+from humanoid_twin.signals import check as check_signal
 from humanoid_twin.slave.laws import LawError
 from humanoid_twin.summary import (
     NO_SUPPORT_MARGIN_MM,
@@ -528,6 +529,7 @@ def run(opts: RunOptions, on_progress: Callable[[float, float | None], None] | N
                 rig.sleep_until(duration)                # time advances here: the robot settles
             except _DurationReachedError:
                 completed = False                        # --duration fell inside the program: cut there
+            check_signal()          # a signal that user code swallowed (and returned): not a finished run
             summary = build_summary(rig, label, the_plan, completed=completed,
                                     wall_s=time.perf_counter() - wall0, host_calls=host_calls)
         note_recording(summary, rig)

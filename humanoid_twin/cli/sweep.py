@@ -66,9 +66,14 @@ def add_sweep_parser(sub: Any) -> argparse.ArgumentParser:
 
 
 def _writable_dir(path: Path, what: str) -> None:
-    parent = path.expanduser().resolve().parent
-    if path.is_dir():
-        raise SweepError(f"{what} {path} is a directory")
+    """``path`` may be written (its directory exists and is writable; an existing ``path`` is a
+    regular file, or a link to one: :func:`humanoid_twin.containment.output_target`)."""
+    from humanoid_twin.containment import OutputPathError, output_target
+
+    try:
+        parent = output_target(path, what).parent
+    except OutputPathError as exc:
+        raise SweepError(str(exc)) from None
     if not parent.is_dir():
         raise SweepError(f"{what} {path}: directory {parent} does not exist")
     if not os.access(parent, os.W_OK):
@@ -244,11 +249,16 @@ def check_ray_address(address: str) -> None:
 
 def sweep_command(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
     """``humanoid-twin sweep`` (``args.run_args``: the options for every run)."""
+    from humanoid_twin import signals
+
+    signals.user_code_runs()        # the checks import the user's scenario, laws, controller
     try:
         params, seeds, task = plan_sweep(args, parser)
     except SweepError as exc:
         sys.stderr.write(f"humanoid-twin: error: {exc}\n")
         return 2
+    finally:
+        signals.user_code_done()    # the runs' own code runs in their own processes
     if args.recordings is not None:
         args.recordings.mkdir(parents=True, exist_ok=True)
     points = grid(params, seeds)
@@ -257,8 +267,6 @@ def sweep_command(args: argparse.Namespace, parser: argparse.ArgumentParser) -> 
         where = args.address or "a local Ray" if args.backend == "ray" else "this machine"
         progress.write(f"sweep: {len(points)} runs of {args.scenario} on {where}"
                        f"{f' ({args.jobs} jobs)' if args.jobs else ''} into {args.out}\n")
-
-    from humanoid_twin import signals
 
     try:
         # SIGINT / SIGTERM (humanoid_twin/signals.py): the runs in flight are stopped within ~2 s,
@@ -274,7 +282,7 @@ def sweep_command(args: argparse.Namespace, parser: argparse.ArgumentParser) -> 
         sys.stderr.write(f"humanoid-twin: error: {exc}\n")
         return 2
     failed = sum(bool(r.get("error")) for r in rows)
-    print(f"{args.out}: {len(rows)} runs, {failed} failed")
+    _say(args, f"{args.out}: {len(rows)} runs, {failed} failed")
     if args.plot is not None:
         from humanoid_twin.sweep.plot import plot_sweep
 
@@ -284,8 +292,16 @@ def sweep_command(args: argparse.Namespace, parser: argparse.ArgumentParser) -> 
         except SweepError as exc:
             sys.stderr.write(f"humanoid-twin: error: {exc}\n")
             return 2
-        print(f"{args.plot}: {args.metric} against {args.x}")
+        _say(args, f"{args.plot}: {args.metric} against {args.x}")
     return exit_code(failed)
+
+
+def _say(args: argparse.Namespace, line: str) -> None:
+    """One line on the command's stdout (cli/streams.py), if it has one."""
+    out = getattr(args, "stdout", sys.stdout)
+    if out is not None:
+        out.write(line + "\n")
+        out.flush()
 
 
 EXIT_FAILED_BASE = 100     # a sweep with failed runs exits 100 + their number (199: 99 or more)
