@@ -565,8 +565,9 @@ def cmd_serve(args: argparse.Namespace) -> int:
     from humanoid_twin.serve import ServeError, ServeOptions, serve
     from humanoid_twin.slave.laws import LawError
 
-    signals.user_code_runs()        # laws are imported next, and run in the twin
+    signals.user_code_runs()        # the laws are imported here
     controllers = check_rig_inputs(args)        # the same checks as run's (cli/options.py)
+    signals.user_code_done()        # (the viewer may take its time to start: not user code)
     if args.tcp is not None:
         _check_bind(args.host, args.tcp)
         _check_remote(args.host, args.allow_remote)
@@ -583,6 +584,7 @@ def cmd_serve(args: argparse.Namespace) -> int:
     signal.signal(signal.SIGTERM, _stop)
     signal.signal(signal.SIGINT, _stop)
     outputs = _Outputs()
+    signals.on_hard_exit(outputs.discard)     # a law that holds a signal back: nothing left behind
     try:
         files = outputs.open_all(args.out, args, 0.0)     # open-ended: the free-space margin only
         if args.viewer:             # the last check, the first thing started: the viewer's window
@@ -593,6 +595,9 @@ def cmd_serve(args: argparse.Namespace) -> int:
         opts = ServeOptions(**rig_fields(args, controllers), **files, live=live,
                             tcp_port=args.tcp, host=args.host, idle_timeout_s=args.idle_timeout or None,
                             speed=args.speed)
+        signals.user_code_runs()    # the laws run in the twin from here to the rig's close
+        if stop["signal"] is not None:      # a signal meanwhile: its grace starts now
+            signals.stop_requested(stop["signal"])
         try:
             code = serve(opts, should_stop=lambda: stop["signal"] is not None,
                          announce=lambda line: _say(args.stdout, line))
@@ -713,7 +718,7 @@ def main(argv: list[str] | None = None) -> int:
 
 def _command(argv: list[str] | None) -> int:
     from humanoid_twin import signals
-    from humanoid_twin.cli.streams import command_stdout
+    from humanoid_twin.cli.streams import command_streams
 
     try:
         parser = build_parser()
@@ -725,7 +730,7 @@ def _command(argv: list[str] | None) -> int:
         handler = {"run": cmd_run, "serve": cmd_serve, "view": cmd_view, "sweep": cmd_sweep}[args.command]
         if args.command == "view":          # no user code: rerun's own output stays on stdout
             return handler(args)
-        with command_stdout() as out:
+        with command_streams() as out:
             args.stdout = out
             return handler(args)
     except Exception as exc:
