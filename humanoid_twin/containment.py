@@ -1,5 +1,6 @@
 """The guard around user code: control laws (``--law``) and host controllers
-(``--host-controller``) (issue 24; docs/controllers.md, "What the twin guards against").
+(``--host-controller``) (issue 24; docs/controllers.md, "What the twin guards against"), and
+around the output paths users name (:func:`output_target`, issue 36).
 
 What user code raises or returns is judged here, inside the guard: any exception, ``SystemExit``
 and a ``KeyboardInterrupt`` the code raised itself (not a real Ctrl-C or SIGTERM, which the CLI's
@@ -10,12 +11,16 @@ raise or be huge); every message is one line of bounded length.
 
 from __future__ import annotations
 
+import os
+import stat
 from collections.abc import Sequence
+from pathlib import Path
 from typing import Any
 
 from humanoid_twin import signals
 
-__all__ = ["MESSAGE_LIMIT", "user_fault", "short_repr", "describe", "law_output", "attribute_path"]
+__all__ = ["MESSAGE_LIMIT", "user_fault", "short_repr", "describe", "law_output", "attribute_path",
+           "OutputPathError", "output_target"]
 
 MESSAGE_LIMIT = 200          # characters of a value or an exception message in a fault's reason
 
@@ -103,3 +108,35 @@ def law_output(values: Any, servos: Sequence[int], n_servos: int, lo: int, hi: i
             return None, f"step returned {what} {short_repr(v, 60)} for servo {j}, outside {lo}..{hi}"
         out[j] = v
     return tuple(out), None
+
+
+class OutputPathError(ValueError):
+    """An output path the twin must not write (one line: the CLI's exit 2)."""
+
+
+_KINDS = ((stat.S_ISFIFO, "a FIFO (named pipe)"), (stat.S_ISCHR, "a character device"),
+          (stat.S_ISBLK, "a block device"), (stat.S_ISSOCK, "a socket"), (stat.S_ISDIR, "a directory"))
+
+
+def output_target(path: str | Path, what: str) -> Path:
+    """The file an output named ``path`` is written to: ``path`` itself or, through symbolic links,
+    the file they lead to (a link is followed, never replaced by a file). An existing target that
+    is not a regular file (a FIFO, a device, a socket, a directory) is refused: the twin writes an
+    output under a temporary name beside it and renames it there at the end, which would replace
+    it (``--serial-log /dev/null`` as root: the system's ``/dev/null``), and writing in place would
+    block on a FIFO without a reader and cannot be undone when the run fails.
+    :class:`OutputPathError` (one line naming ``what``) then, or when the links loop."""
+    given = Path(path).expanduser()
+    target = Path(os.path.realpath(given))
+    via = f" (through a link: {target})" if given.is_symlink() else ""
+    try:
+        mode = os.stat(target).st_mode
+    except FileNotFoundError:
+        return target
+    except OSError as exc:
+        raise OutputPathError(f"{what} {path}: {exc.strerror or exc}{via}") from None
+    if stat.S_ISREG(mode):
+        return target
+    kind = next((name for test, name in _KINDS if test(mode)), "not a regular file")
+    raise OutputPathError(f"{what} {path} is {kind}{via}, not a regular file: the twin writes its outputs "
+                          "to files only (it would be replaced); give a file's path")

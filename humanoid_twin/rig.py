@@ -326,7 +326,11 @@ class Rig:
     # -- the end ---------------------------------------------------------------------------------
     def close(self) -> None:
         """Close the outputs and the twin in the reverse of their assembly, each even when an
-        earlier one failed; the first error is raised once all are closed."""
+        earlier one failed; the first error is raised once all are closed. No user code runs from
+        here (humanoid_twin/signals.user_code_done: a signal's grace ends)."""
+        from humanoid_twin import signals
+
+        signals.user_code_done()
         first: BaseException | None = None
         for thing in (self.seriallog, self.canlog, self.recorder, self.twin):
             if thing is None:

@@ -60,6 +60,7 @@ from humanoid_twin.rig import (
     boot,
     tilt_profile,
 )
+from humanoid_twin.signals import check as check_signal
 from humanoid_twin.slave.laws import LawError
 from humanoid_twin.summary import (
     NO_SUPPORT_MARGIN_MM,
@@ -794,6 +795,7 @@ def _run_rig(rig: Rig, opts: RunOptions, spec: Scenario, label: str, the_plan: P
     finally:
         end.disarm()
         diverged.disarm()
+    check_signal()          # a signal that user code swallowed (and returned): not a finished run
     return build_summary(rig, label, the_plan, completed=completed,
                          wall_s=time.perf_counter() - wall0, host_calls=host_calls)
 

@@ -51,10 +51,16 @@ def _log(text: str) -> None:
     sys.stderr.flush()
 
 
+def _announce(line: str) -> None:
+    print(line, flush=True)
+
+
 def serve(opts: ServeOptions | None = None, *, should_stop: Callable[[], bool] = lambda: False,
-          log: Callable[[str], None] = _log) -> int:
+          log: Callable[[str], None] = _log, announce: Callable[[str], None] = _announce) -> int:
     """Serve until ``should_stop()`` (or ``opts.max_seconds`` of wall time); returns an exit code.
-    The rig's outputs are complete files when it returns, whatever ended it.
+    The rig's outputs are complete files when it returns, whatever ended it. ``announce(port)``
+    prints the port's name, the first line on stdout (default: ``print``; the CLI gives its own
+    stdout, cli/streams.py).
 
     Raises :class:`ServeError` if the TCP address cannot be listened on (before the twin boots).
     """
@@ -79,15 +85,15 @@ def serve(opts: ServeOptions | None = None, *, should_stop: Callable[[], bool] =
             where = f"{opts.host} port {opts.tcp_port}" if opts.tcp_port is not None else "a pty"
             raise ServeError(exc.errno, f"cannot listen on {where}: {exc.strerror or exc}") from exc
         try:
-            return _serve_loop(rig, bridge, opts, should_stop, log)
+            return _serve_loop(rig, bridge, opts, should_stop, log, announce)
         finally:
             bridge.close()
 
 
 def _serve_loop(rig: Rig, bridge: PtyBridge | TcpBridge, opts: ServeOptions, should_stop: Callable[[], bool],
-                log: Callable[[str], None]) -> int:
+                log: Callable[[str], None], announce: Callable[[str], None]) -> int:
     twin = rig.twin
-    print(bridge.port_name, flush=True)
+    announce(bridge.port_name)
     idle = f"idle timeout {opts.idle_timeout_s:g} s" if opts.idle_timeout_s else "no idle timeout"
     pace = "" if opts.speed == 1.0 else f", {opts.speed:g}x real time"
     log(f"serving on {bridge.port_name}: one client at a time, {idle}{pace}")

@@ -27,6 +27,7 @@ from humanoid_twin.master.supervisor import SupervisorConfig
 from humanoid_twin.plant import Plant
 from humanoid_twin.protocol.wire import LINE_SETTINGS, N_SCU, SCUS
 from humanoid_twin.seeds import STREAM_PHASES, derive_seed
+from humanoid_twin.signals import check as check_signal
 from humanoid_twin.slave.slave import Slave
 
 _names = itertools.count()
@@ -88,8 +89,10 @@ class Twin:
         """Run every board and bus up to virtual time ``t_us``, then bring the physics there.
 
         The one way to move the whole twin in time (the serial port's lockstep reads, ``run``,
-        ``serve``); the plant also runs its due physics itself before any read or write.
+        ``serve``); the plant also runs its due physics itself before any read or write. A
+        signal that user code swallowed is raised again here (humanoid_twin/signals.check).
         """
+        check_signal()
         self.clock.run_until(t_us)
         self.plant.advance_to(t_us)
 

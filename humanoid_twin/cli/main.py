@@ -223,23 +223,35 @@ CAN_LOG_BYTES_PER_FRAME_OTHER = 150     # a format not measured (.mf4 ...): the 
 CAN_LOG_BYTES_PER_FRAME_GZ = 8          # any format + .gz (measured .asc.gz: 3.2)
 
 
-def _check_writable(path: Path, what: str) -> None:
-    parent = path.expanduser().resolve().parent
-    if path.exists() and path.is_dir():
-        raise _usage_error(f"{what} {path} is a directory")
+def _check_writable(path: Path, what: str) -> Path:
+    """``path`` may be written by a run (one line, exit 2 otherwise); returns the file it names
+    (through symbolic links: :func:`humanoid_twin.containment.output_target`, which also refuses
+    a FIFO or a device)."""
+    from humanoid_twin.containment import OutputPathError, output_target
+
+    try:
+        target = output_target(path, what)
+    except OutputPathError as exc:
+        raise _usage_error(str(exc)) from None
+    parent = target.parent
     if not parent.is_dir():
         raise _usage_error(f"{what} {path}: directory {parent} does not exist")
-    if not os.access(parent, os.W_OK) or (path.exists() and not os.access(path, os.W_OK)):
+    if not os.access(parent, os.W_OK) or (target.exists() and not os.access(target, os.W_OK)):
         raise _usage_error(f"{what} {path} is not writable")
-    if len(os.fsencode(path.name)) > NAME_MAX:
+    if len(os.fsencode(target.name)) > NAME_MAX:
         raise _usage_error(f"{what}: the file name is longer than {NAME_MAX} bytes")
+    return target
 
 
-def temp_name(path: Path) -> Path:
-    """The temporary name a run writes ``path`` under (beside it, renamed at the end): the
-    suffixes kept at the end (the format follows them), and never longer than a file name may be
-    (a valid 252-character name still gets a valid temporary one)."""
-    name = f".partial-{os.getpid()}-{path.name}"
+PARTIAL_PREFIX = ".partial-"     # a run's temporary outputs: .partial-PID-NAME beside NAME
+
+
+def temp_name(path: Path, pid: int | None = None) -> Path:
+    """The temporary name a run (process ``pid``, default this one) writes ``path`` under (beside
+    it, renamed at the end): the suffixes kept at the end (the format follows them), and never
+    longer than a file name may be (a valid 252-character name still gets a valid temporary one)."""
+    pid = os.getpid() if pid is None else pid
+    name = f"{PARTIAL_PREFIX}{pid}-{path.name}"
     if len(os.fsencode(name)) <= NAME_MAX:
         return path.with_name(name)
     import hashlib
@@ -247,7 +259,39 @@ def temp_name(path: Path) -> Path:
     suffixes = path.suffixes[-2:] if path.suffix.lower() == ".gz" else path.suffixes[-1:]
     keep = "".join(suffixes)[-40:]
     digest = hashlib.sha256(os.fsencode(path.name)).hexdigest()[:16]
-    return path.with_name(f".partial-{os.getpid()}-{digest}{keep}")
+    return path.with_name(f"{PARTIAL_PREFIX}{pid}-{digest}{keep}")
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except OSError:             # another user's process: alive
+        return True
+    return True
+
+
+def remove_stale_partials(path: Path) -> list[Path]:
+    """Remove the temporary files of ``path`` left by runs whose process is gone (a process ended
+    at once, where no ``finally`` runs: ``os._exit`` in user code, SIGKILL, a power cut; issue
+    36); returns them. A file of a process still alive is left alone."""
+    removed = []
+    try:
+        entries = list(os.scandir(path.parent))
+    except OSError:
+        return removed
+    for entry in entries:
+        pid_text = entry.name[len(PARTIAL_PREFIX):].partition("-")[0]
+        if not entry.name.startswith(PARTIAL_PREFIX) or not pid_text.isdigit():
+            continue
+        pid = int(pid_text)
+        if pid == os.getpid() or entry.name != temp_name(path, pid).name or _alive(pid):
+            continue
+        with contextlib.suppress(OSError):
+            os.unlink(entry.path)
+            removed.append(Path(entry.path))
+    return removed
 
 
 def output_bytes(kind: str, path: Path, expected_s: float) -> int:
@@ -277,7 +321,8 @@ class _Outputs:
     disk has been checked against what the run will write there (:func:`output_bytes`)."""
 
     def __init__(self) -> None:
-        self.final: dict[str, Path] = {}
+        self.final: dict[str, Path] = {}       # as the user named them (messages, the summary)
+        self.target: dict[str, Path] = {}      # the files they name (through symbolic links)
         self.temp: dict[str, Path] = {}
 
     def check_space(self, wanted: dict[str, tuple[Path, str]], expected_s: float) -> None:
@@ -285,8 +330,7 @@ class _Outputs:
         open-ended run, ``serve``: ``expected_s`` 0, that margin only)."""
         need: dict[int, list] = {}
         for key, (path, what) in wanted.items():
-            _check_writable(path, what)
-            parent = path.expanduser().resolve().parent
+            parent = _check_writable(path, what).parent
             dev = os.stat(parent).st_dev
             entry = need.setdefault(dev, [parent, 0, []])
             entry[1] += output_bytes(key, path, expected_s)
@@ -313,8 +357,13 @@ class _Outputs:
         return files
 
     def add(self, key: str, path: Path, what: str) -> Path:
+        """Create the temporary file of output ``key`` (``path``, named by ``what``), beside the
+        file ``path`` names (a symbolic link is followed: its target is replaced at the end, the
+        link stays), once the temporary files that dead runs left for it are removed."""
         path = path.expanduser()
-        tmp = temp_name(path)
+        target = _check_writable(path, what)
+        tmp = temp_name(target)
+        remove_stale_partials(target)
         from humanoid_twin import signals
 
         with signals.deferred():     # created and registered together: no stray file after a signal
@@ -323,7 +372,7 @@ class _Outputs:
             except OSError as exc:
                 self.discard()
                 raise _usage_error(f"{what} {path}: cannot write there: {exc.strerror or exc}") from None
-            self.final[key], self.temp[key] = path, tmp
+            self.final[key], self.target[key], self.temp[key] = path, target, tmp
         return tmp
 
     def commit(self) -> None:
@@ -332,7 +381,7 @@ class _Outputs:
         with signals.deferred():     # every rename done before a signal is delivered
             for key, tmp in list(self.temp.items()):
                 if tmp.exists():
-                    os.replace(tmp, self.final[key])
+                    os.replace(tmp, self.target[key])
                 del self.temp[key]
 
     def discard(self) -> None:
@@ -391,8 +440,10 @@ def check_run_inputs(args: argparse.Namespace, load: bool = True) -> dict[str, A
 def cmd_run(args: argparse.Namespace) -> int:
     """``humanoid-twin run``: ``--wall-timeout`` is armed from its first line (importing, planning
     and sizing the scenario included: a user's loop there ends in one line, exit 1)."""
+    from humanoid_twin import signals
     from humanoid_twin.scenarios import WallTimeoutExpired, arm_wall_timeout, disarm_wall_timeout
 
+    signals.user_code_runs()        # the scenario, laws and controller are imported next
     try:
         arm_wall_timeout(args.wall_timeout)
         return _cmd_run(args)
@@ -419,6 +470,8 @@ def _causes(exc: BaseException, limit: int = 20) -> list[BaseException]:
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
+    from humanoid_twin import signals
+
     controllers = check_run_inputs(args)
     if args.viewer:
         from humanoid_twin.cli.live_viewer import LiveViewerError, check_display
@@ -439,8 +492,6 @@ def _cmd_run(args: argparse.Namespace) -> int:
     # --out was checked with the other inputs; the default name ends in .rrd
     out = None if args.no_record else (args.out or Path(recording_name(args.scenario)))
     outputs = _Outputs()
-    from humanoid_twin import signals
-
     signals.on_hard_exit(outputs.discard)     # --wall-timeout against code that swallows the stop
     try:
         files = outputs.open_all(out, args, expected_s)
@@ -482,6 +533,7 @@ def _run(args: argparse.Namespace, opts: Any, outputs: _Outputs) -> int:
         # SIGINT / SIGTERM (humanoid_twin/signals.py, installed by main): the run closed its files
         # on the way out, each complete before the signal was let through: what was recorded is
         # kept (valid files)
+        signals.user_code_done()
         outputs.commit()
         kept = " ".join(str(p) for p in outputs.final.values())
         why = "terminated (SIGTERM)" if isinstance(exc, signals.Terminated) else "interrupted"
@@ -527,7 +579,7 @@ def _run(args: argparse.Namespace, opts: Any, outputs: _Outputs) -> int:
     for fault in summary.get("law_faults", ()):
         sys.stderr.write(f"humanoid-twin: control law {fault['law']} stopped on SCU {fault['scu']} at "
                          f"t={fault['t_s']} s: {fault['reason']}\n")
-    _print_summary(summary, args.json)
+    _print_summary(summary, args.json, args.stdout)
     return EXIT_SUPERVISOR if summary.get("mode") in ("safe", "estop") else 0
 
 
@@ -557,25 +609,28 @@ def summary_table(summary: dict) -> str:
     return "".join(f"{key:<{width}}  {_plain(value)}\n" for key, value in summary.items())
 
 
-def _print_summary(summary: dict, as_json: bool) -> None:
-    """``--json``: the JSON object alone on stdout (for machines); otherwise the human table."""
-    if as_json:
-        sys.stdout.write(json.dumps(summary, sort_keys=False) + "\n")
-    else:
-        sys.stdout.write(summary_table(summary))
-    sys.stdout.flush()
+def _print_summary(summary: dict, as_json: bool, out: Any) -> None:
+    """``--json``: the JSON object alone on stdout (for machines); otherwise the human table.
+    ``out``: the command's stdout (cli/streams.py; None: the process has none)."""
+    if out is None:
+        return
+    out.write(json.dumps(summary, sort_keys=False) + "\n" if as_json else summary_table(summary))
+    out.flush()
 
 
 def cmd_serve(args: argparse.Namespace) -> int:
     """``humanoid-twin serve``: real-time pacing, the port on the first stdout line; ``--out``,
     ``--can-log`` and ``--serial-log`` written under temporary names and renamed when serve ends
     (Ctrl-C, SIGTERM)."""
+    from humanoid_twin import signals
     from humanoid_twin.recording.readback import RrdReadError
     from humanoid_twin.recording.viewer import ViewerError, live_url, spawn_live_viewer
     from humanoid_twin.serve import ServeError, ServeOptions, serve
     from humanoid_twin.slave.laws import LawError
 
+    signals.user_code_runs()        # the laws are imported here
     controllers = check_rig_inputs(args)        # the same checks as run's (cli/options.py)
+    signals.user_code_done()        # (the viewer may take its time to start: not user code)
     if args.tcp is not None:
         _check_bind(args.host, args.tcp)
         _check_remote(args.host, args.allow_remote)
@@ -587,10 +642,12 @@ def cmd_serve(args: argparse.Namespace) -> int:
 
     def _stop(signum: int, frame: object) -> None:
         stop["signal"] = stop["signal"] or signum
+        signals.stop_requested(signum)     # a law that never returns: the process ends anyway
 
     signal.signal(signal.SIGTERM, _stop)
     signal.signal(signal.SIGINT, _stop)
     outputs = _Outputs()
+    signals.on_hard_exit(outputs.discard)     # a law that holds a signal back: nothing left behind
     try:
         files = outputs.open_all(args.out, args, 0.0)     # open-ended: the free-space margin only
         if args.viewer:             # the last check, the first thing started: the viewer's window
@@ -601,8 +658,12 @@ def cmd_serve(args: argparse.Namespace) -> int:
         opts = ServeOptions(**rig_fields(args, controllers), **files, live=live,
                             tcp_port=args.tcp, host=args.host, idle_timeout_s=args.idle_timeout or None,
                             speed=args.speed)
+        signals.user_code_runs()    # the laws run in the twin from here to the rig's close
+        if stop["signal"] is not None:      # a signal meanwhile: its grace starts now
+            signals.stop_requested(stop["signal"])
         try:
-            code = serve(opts, should_stop=lambda: stop["signal"] is not None)
+            code = serve(opts, should_stop=lambda: stop["signal"] is not None,
+                         announce=lambda line: _say(args.stdout, line))
         except (ServeError, LawError) as exc:     # LawError: a law that cannot be made for every board
             raise _usage_error(str(exc)) from None
         except (OSError, RrdReadError) as exc:
@@ -616,6 +677,13 @@ def cmd_serve(args: argparse.Namespace) -> int:
         outputs.discard()
     # ended by a signal: 130 (SIGINT) or 143 (SIGTERM), as run (issue 24; it was 0)
     return 128 + stop["signal"] if stop["signal"] is not None else code
+
+
+def _say(out: Any, line: str) -> None:
+    """One line on the command's stdout (cli/streams.py; None: the process has none)."""
+    if out is not None:
+        out.write(line + "\n")
+        out.flush()
 
 
 def _check_remote(host: str, allow: bool) -> None:
@@ -720,10 +788,27 @@ def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``humanoid-twin`` console script.
 
     Its first instruction installs the signal handlers (humanoid_twin/signals.py): from there to
-    the last rename, SIGINT exits 130 and SIGTERM 143 with one line, never a traceback."""
+    the last rename, SIGINT exits 130 and SIGTERM 143 with one line, never a traceback. ``run``,
+    ``serve`` and ``sweep`` keep stdout for their own output (cli/streams.py: what user code
+    prints goes to stderr). ``argv`` None (the console script): the process ends here, also when
+    threads started by user code are still running (:func:`humanoid_twin.signals.end_process`)."""
     from humanoid_twin import signals
 
     signals.install()
+    code = 1
+    try:
+        code = _command(argv)
+    finally:
+        signals.restore(exiting=code if argv is None else None)   # argv None: about to exit
+    if argv is None:
+        signals.end_process(code)
+    return code
+
+
+def _command(argv: list[str] | None) -> int:
+    from humanoid_twin import signals
+    from humanoid_twin.cli.streams import command_streams
+
     try:
         parser = build_parser()
         args, extra = parser.parse_known_args(argv)
@@ -734,7 +819,11 @@ def main(argv: list[str] | None = None) -> int:
         handler = {"run": cmd_run, "serve": cmd_serve, "view": cmd_view, "sweep": cmd_sweep,
                    "params": cmd_params, "compare": _cmd_compare, "calibrate": _cmd_calibrate,
                    "replay": cmd_replay}[args.command]
-        return handler(args)
+        if args.command not in ("run", "serve", "sweep"):   # no user code's prints to keep off stdout
+            return handler(args)
+        with command_streams() as out:
+            args.stdout = out
+            return handler(args)
     except Exception as exc:
         # a signal that landed in an extension module's import comes out wrapped (ImportError)
         cause = signals.signal_cause(exc)
@@ -743,14 +832,13 @@ def main(argv: list[str] | None = None) -> int:
         return _signalled(cause)
     except KeyboardInterrupt as exc:
         return _signalled(exc)
-    finally:
-        signals.restore(exiting=argv is None)     # argv None: the console script, about to exit
 
 
 def _signalled(exc: BaseException) -> int:
     """One line for SIGINT / SIGTERM, and the exit code (130 / 143)."""
     from humanoid_twin import signals
 
+    signals.user_code_done()
     why = "terminated (SIGTERM)" if isinstance(exc, signals.Terminated) else "interrupted"
     with contextlib.suppress(OSError):
         sys.stderr.write(f"humanoid-twin: {why}\n")

@@ -71,9 +71,14 @@ def add_sweep_parser(sub: Any) -> argparse.ArgumentParser:
 
 
 def _writable_dir(path: Path, what: str) -> None:
-    parent = path.expanduser().resolve().parent
-    if path.is_dir():
-        raise SweepError(f"{what} {path} is a directory")
+    """``path`` may be written (its directory exists and is writable; an existing ``path`` is a
+    regular file, or a link to one: :func:`humanoid_twin.containment.output_target`)."""
+    from humanoid_twin.containment import OutputPathError, output_target
+
+    try:
+        parent = output_target(path, what).parent
+    except OutputPathError as exc:
+        raise SweepError(str(exc)) from None
     if not parent.is_dir():
         raise SweepError(f"{what} {path}: directory {parent} does not exist")
     if not os.access(parent, os.W_OK):
@@ -294,8 +299,10 @@ def check_ray_address(address: str) -> None:
 
 def sweep_command(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
     """``humanoid-twin sweep`` (``args.run_args``: the options for every run)."""
+    from humanoid_twin import signals
     from humanoid_twin.scenarios import WallTimeoutExpired
 
+    signals.user_code_runs()        # the checks import the user's scenario, laws, controller
     try:
         params, seeds, task = plan_sweep(args, parser)
     except SweepError as exc:
@@ -306,6 +313,8 @@ def sweep_command(args: argparse.Namespace, parser: argparse.ArgumentParser) -> 
                          f"(--timeout): loading, planning or sizing {args.scenario} does not end; no run "
                          "started\n")
         return 1
+    finally:
+        signals.user_code_done()    # the runs' own code runs in their own processes
     if args.recordings is not None:
         args.recordings.mkdir(parents=True, exist_ok=True)
     points = randomized_grid(params, args.draws, seeds)     # the grid x the drawn robots x the seeds
@@ -314,8 +323,6 @@ def sweep_command(args: argparse.Namespace, parser: argparse.ArgumentParser) -> 
         where = args.address or "a local Ray" if args.backend == "ray" else "this machine"
         progress.write(f"sweep: {len(points)} runs of {args.scenario} on {where}"
                        f"{f' ({args.jobs} jobs)' if args.jobs else ''} into {args.out}\n")
-
-    from humanoid_twin import signals
 
     try:
         # SIGINT / SIGTERM (humanoid_twin/signals.py): the runs in flight are stopped within ~2 s,
@@ -331,7 +338,7 @@ def sweep_command(args: argparse.Namespace, parser: argparse.ArgumentParser) -> 
         sys.stderr.write(f"humanoid-twin: error: {exc}\n")
         return 2
     failed = sum(bool(r.get("error")) for r in rows)
-    print(f"{args.out}: {len(rows)} runs, {failed} failed")
+    _say(args, f"{args.out}: {len(rows)} runs, {failed} failed")
     if args.plot is not None:
         from humanoid_twin.sweep.plot import plot_sweep
 
@@ -341,8 +348,16 @@ def sweep_command(args: argparse.Namespace, parser: argparse.ArgumentParser) -> 
         except SweepError as exc:
             sys.stderr.write(f"humanoid-twin: error: {exc}\n")
             return 2
-        print(f"{args.plot}: {args.metric} against {args.x}")
+        _say(args, f"{args.plot}: {args.metric} against {args.x}")
     return exit_code(failed)
+
+
+def _say(args: argparse.Namespace, line: str) -> None:
+    """One line on the command's stdout (cli/streams.py), if it has one."""
+    out = getattr(args, "stdout", sys.stdout)
+    if out is not None:
+        out.write(line + "\n")
+        out.flush()
 
 
 EXIT_FAILED_BASE = 100     # a sweep with failed runs exits 100 + their number (199: 99 or more)

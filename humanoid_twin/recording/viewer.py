@@ -79,6 +79,42 @@ def _listening(host: str, port: int, timeout_s: float = 1.0) -> bool:
         return False
 
 
+# A rerun viewer's server speaks gRPC, over HTTP/2: to a client's connection preface it answers
+# with its SETTINGS frame at once (RFC 9113 section 3.4; measured: 6 ms). rerun's own client
+# (``set_sinks``) waits for that answer without a bound and without letting Python run (issue 36:
+# ``--connect`` to a port held by something else hung at start-up, deaf to SIGTERM).
+_H2_SETTINGS = 0x04             # the frame type of SETTINGS
+# the preface, then an empty SETTINGS frame: length 0 (3 bytes), type, flags 0, stream 0 (4 bytes)
+_H2_PREFACE = b"PRI * HTTP/2.0\r\n\r\nSM\r\n\r\n" + bytes(3) + bytes([_H2_SETTINGS]) + bytes(5)
+VIEWER_ANSWER_S = 2.0           # a viewer answers the probe within this (wall s)
+
+
+def _viewer_answers(host: str, port: int, timeout_s: float = VIEWER_ANSWER_S) -> bool | None:
+    """None: nothing listens at ``host``:``port``; True: an HTTP/2 server answers (a rerun
+    viewer's gRPC server); False: something else holds the port (it said something else, or
+    nothing within ``timeout_s``)."""
+    import time
+
+    try:
+        sock = socket.create_connection((host, port), timeout=timeout_s)
+    except OSError:
+        return None
+    with sock:
+        deadline = time.monotonic() + timeout_s
+        got = b""
+        try:
+            sock.sendall(_H2_PREFACE)
+            while len(got) < 9 and time.monotonic() < deadline:
+                sock.settimeout(max(0.01, deadline - time.monotonic()))
+                chunk = sock.recv(9 - len(got))
+                if not chunk:
+                    break
+                got += chunk
+        except OSError:
+            return False
+    return len(got) == 9 and got[3] == _H2_SETTINGS
+
+
 def live_url(addr: str) -> str:
     """``--connect``'s ``addr`` (``HOST:PORT``, ``PORT``, or ``rerun+http://HOST:PORT/proxy``) as
     a gRPC URL; :class:`ViewerError` (one line) when it is not a loopback address (the recording
@@ -104,9 +140,14 @@ def live_url(addr: str) -> str:
     if not all(ipaddress.ip_address(info[4][0].split("%")[0]).is_loopback for info in infos):
         raise ViewerError(f"--connect {addr}: not a loopback address; the live recording is only sent "
                           f"to a viewer on this machine (e.g. {DEFAULT_CONNECT})")
-    if not _listening(host, port):
+    answers = _viewer_answers(host, port)
+    if answers is None:
         raise ViewerError(f"--connect {addr}: no viewer listens there; start one first "
                           f"(rerun --bind {LOOPBACK} --port {port}), or use --viewer")
+    if not answers:
+        raise ViewerError(f"--connect {addr}: something listens there but it is not a rerun viewer (no "
+                          f"gRPC answer within {VIEWER_ANSWER_S:g} s); start one on a free port "
+                          f"(rerun --bind {LOOPBACK} --port N), or use --viewer")
     return grpc_url(host, port)
 
 

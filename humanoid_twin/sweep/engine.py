@@ -138,6 +138,9 @@ class RunCli:
         err = [ln.strip() for ln in stderr.splitlines() if ln.strip()]
         if returncode == 1 and err and "(--wall-timeout)" in err[-1]:
             raise RuntimeError(self._timeout_message())
+        if returncode in (0, 3):    # a run prints its summary last: its process ended before (os._exit)
+            why = "ended without its summary (its process ended early: os._exit in user code?)"
+            raise RuntimeError(f"exit {returncode}: {why}" + (f": {' | '.join(err)}" if err else ""))
         raise RuntimeError(f"exit {returncode}: {' | '.join(err) if err else 'no message'}")
 
 
