@@ -554,7 +554,7 @@ def _run(args: argparse.Namespace, opts: Any, outputs: _Outputs) -> int:
         sys.stderr.write(f"humanoid-twin: the simulation diverged ({summary.get('diverged')}): the run "
                          "ended there; its outputs are not written\n")
         outputs.discard()
-        _print_summary(summary, args.json)
+        _print_summary(summary, args.json, args.stdout)
         return 1
     if summary.get("boot_s") is None:
         sys.stderr.write(f"humanoid-twin: warning: the run ended at {summary['duration_s']:g} s (--duration) "
