@@ -498,12 +498,16 @@ def expected_run_s(scenario: str | Scenario, duration: float | None = None, T: f
 
 
 def run(opts: RunOptions, on_progress: Callable[[float, float | None], None] | None = None,
-        on_twin: Callable[[Any], None] | None = None) -> dict[str, Any]:
+        on_twin: Callable[[Any], None] | None = None,
+        on_boot: Callable[[float, str | None], None] | None = None) -> dict[str, Any]:
     """Run one scenario headless and return its summary (docs/scenarios.md).
 
     ``on_progress(t_s, end_s)`` is called every 0.1 s of virtual time: ``end_s`` is None during
     the boot (its length is not known in advance), then the run's end time. ``on_twin(twin)`` is
-    called once the twin is built, before anything is written (``run --viewer`` attaches there)."""
+    called once the twin is built, before anything is written (``run --viewer`` attaches there).
+    ``on_boot(t_s, error)`` is called once the boot is over, before ``on_progress`` hears of the
+    run's end: ``error`` None when it worked, else why it failed (a run that tolerates it goes
+    on without the scenario's program: the summary's ``booted`` false)."""
     spec, label = load_scenario(opts.scenario), scenario_name(opts.scenario)
     the_plan = run_plan(spec, opts)
     motion_s = spec.motion_s(the_plan)
@@ -516,8 +520,10 @@ def run(opts: RunOptions, on_progress: Callable[[float, float | None], None] | N
         with _open_rig(opts, expected_s, on_twin, on_progress) as rig:
             rig.boot()                                   # time advances here: the boot
             boot_s = rig.now_s
+            if on_boot is not None:
+                on_boot(boot_s, rig.boot_error)
             duration = rig.end_s = _duration(opts, boot_s, motion_s)
-            completed, host_calls = True, None
+            completed, host_calls = rig.boot_error is None, None   # a failed boot: no program ran
             if duration < boot_s + motion_s:
                 _cut_at(rig, duration)                   # --duration ends inside the program
             try:

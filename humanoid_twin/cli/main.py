@@ -419,7 +419,8 @@ def _run(args: argparse.Namespace, opts: Any, outputs: _Outputs) -> int:
         live, viewer_errors = LiveViewer(), (LiveViewerError,)
     try:
         summary = run(opts, on_progress=None if bar is None else bar.update,
-                      on_twin=None if live is None else live.attach)
+                      on_twin=None if live is None else live.attach,
+                      on_boot=None if bar is None else bar.boot_ended)
     except ScenarioInputError as exc:
         raise _usage_error(str(exc)) from None
     except ScenarioError as exc:
