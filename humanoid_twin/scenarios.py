@@ -346,11 +346,12 @@ def load_scenario(ref: str | Scenario) -> Scenario:
         where, attr = split_reference(ref)
         if not where or not attr:
             raise ScenarioLoadError(f"scenario {ref!r}: expected FILE.py:NAME or MODULE:NAME")
-        obj: Any = _import(ref, where)
+        module: Any = _import(ref, where)
         try:
-            obj = attribute_path(obj, attr)
+            obj: Any = attribute_path(module, attr)
         except AttributeError:
-            raise ScenarioLoadError(f"scenario {ref!r}: {where} has no {attr!r}") from None
+            hint = _hint(module, where, attr)
+            raise ScenarioLoadError(f"scenario {ref!r}: {where} has no {attr!r}{hint}") from None
     else:
         from importlib.metadata import entry_points
 
@@ -359,7 +360,7 @@ def load_scenario(ref: str | Scenario) -> Scenario:
             raise ScenarioLoadError(
                 f"unknown scenario {ref!r} (choose from {', '.join(REGISTRY)}; or FILE.py:NAME, "
                 f"MODULE:NAME, an entry point of {ENTRY_POINT_GROUP!r}: "
-                f"{', '.join(entry_point_names()) or 'none installed'})")
+                f"{', '.join(entry_point_names()) or 'none installed'}){did_you_mean(ref)}")
         try:
             obj = eps[0].load()
         except BaseException as exc:       # noqa: BLE001 - a user's package: judged, not trusted
@@ -375,6 +376,34 @@ def load_scenario(ref: str | Scenario) -> Scenario:
                                 "(the default recording is NAME.rrd): give it a name without '/'")
     _loaded[ref] = obj
     return obj
+
+
+def did_you_mean(name: str) -> str:
+    """``"; did you mean stand?"`` for a misspelt scenario name (the built-in ones and the entry
+    points), or nothing."""
+    import difflib
+
+    close = difflib.get_close_matches(name, [*REGISTRY, *entry_point_names()], n=1, cutoff=0.6)
+    return f"; did you mean {close[0]}?" if close else ""
+
+
+def _hint(module: Any, where: str, attr: str) -> str:
+    """What a module that lacks ``attr`` holds instead: its :class:`Scenario` objects, by the names
+    a reference takes (the variables), and the one whose ``name`` is ``attr`` when there is one
+    (a scenario is named by its variable, not by its ``name`` field)."""
+    found = {var: obj for var, obj in vars(module).items()
+             if isinstance(obj, Scenario) and not var.startswith("_")}
+    if not found:
+        return " (it holds no Scenario object)"
+    by_name = [var for var, obj in found.items() if obj.name == attr]
+    if by_name:
+        return (f": {attr!r} is the name of its Scenario object {by_name[0]!r}; a reference names the "
+                f"variable: {where}:{by_name[0]}")
+    import difflib
+
+    close = difflib.get_close_matches(attr, list(found), n=1)
+    guess = f"; did you mean {close[0]}?" if close else ""
+    return f" (its Scenario objects: {', '.join(found)}){guess}"
 
 
 def _import(ref: str, where: str) -> Any:

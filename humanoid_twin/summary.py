@@ -12,15 +12,15 @@ import numpy as np
 from humanoid_twin.cycles import DEFAULT_PIC_MHZ
 from humanoid_twin.faults import FaultSpec
 from humanoid_twin.monitor import CONTROLLERS_START_S
-from humanoid_twin.protocol.wire import ControlType
+from humanoid_twin.protocol.wire import SCUS, ControlType
 from humanoid_twin.twin import Twin
 
 if TYPE_CHECKING:
     from humanoid_twin.rig import Rig
     from humanoid_twin.scenarios import Plan
 
-__all__ = ["SUMMARY_KEYS", "summary_keys_markdown", "build_summary", "outcome", "SLIP_HELD_MM",
-           "NO_SUPPORT_MARGIN_MM", "FOOT_SCUS"]
+__all__ = ["SUMMARY_KEYS", "SUMMARY_SUBKEYS", "summary_keys_markdown", "build_summary", "outcome",
+           "SLIP_HELD_MM", "NO_SUPPORT_MARGIN_MM", "FOOT_SCUS", "plain_value", "table_cells", "table_columns"]
 
 FOOT_SCUS = (1, 2)      # the leg boards (foot lateral, foot front, knee): the summary's ``control``
 
@@ -181,6 +181,54 @@ SUMMARY_KEYS: dict[str, str] = {
                            "kept as recorded (docs/recording.md)",
     "recording_note": "only with `recording_compacted`: why the compaction failed",
 }
+
+
+# the keys whose value is a dict, and that dict's keys: a sweep's table gives each its own column,
+# ``KEY_SUB`` (``task_load_max_slaves``, ``deadline_misses_3``: humanoid_twin/board_report.py)
+SUMMARY_SUBKEYS: dict[str, tuple[str, ...]] = {
+    "task_load_max": ("slaves", "master"),
+    "deadline_misses": ("master", *(str(scu) for scu in SCUS)),
+}
+
+
+def plain_value(value: object) -> str:
+    """A summary value as a person reads it (the run's table, a sweep table's list cells): ``-``
+    for none, ``yes``/``no``, lists one item after another, ``; `` between them (a dict as
+    ``key=value`` pairs), no Python reprs."""
+    if value is None:
+        return "-"
+    if isinstance(value, bool):
+        return "yes" if value else "no"
+    if isinstance(value, dict):
+        return " ".join(f"{k}={plain_value(v)}" for k, v in value.items())
+    if isinstance(value, list | tuple):
+        return "; ".join(plain_value(v) for v in value) if value else "-"
+    return str(value)
+
+
+def table_cells(summary: dict[str, Any]) -> dict[str, Any]:
+    """A run's summary as the cells of a table row (a sweep's): a dict of numbers becomes one
+    column per key (:data:`SUMMARY_SUBKEYS`: ``task_load_max_slaves`` ...), a list the words of
+    the run's own table (:func:`plain_value`; an empty one, none), every other value as it is;
+    no JSON text in a cell."""
+    cells: dict[str, Any] = {}
+    for key, value in summary.items():
+        if isinstance(value, dict):
+            for sub, v in value.items():
+                cells[f"{key}_{sub}"] = plain_value(v) if isinstance(v, list | tuple | dict) else v
+        elif isinstance(value, list | tuple):
+            cells[key] = plain_value(value) if value else None
+        else:
+            cells[key] = value
+    return cells
+
+
+def table_columns() -> list[str]:
+    """Every column :func:`table_cells` can give, in the summary's order."""
+    cols: list[str] = []
+    for key in SUMMARY_KEYS:
+        cols += [f"{key}_{sub}" for sub in SUMMARY_SUBKEYS[key]] if key in SUMMARY_SUBKEYS else [key]
+    return cols
 
 
 def summary_keys_markdown() -> str:
