@@ -10,6 +10,9 @@ Public API (stable; ``scenarios.run``, the balance study and user controllers us
     ...                          # run the twin (serial requests, twin.run_for, ...)
     mon.fell, mon.fell_at_s, mon.trunk_tilt_max_deg, mon.cop_margin_min_mm, mon.cop_error_rms_mm
     mon.slip_mm                  # the largest distance a foot slid on the platform
+    mon.trunk_tilt_max_at_s, mon.cop_margin_min_at_s, mon.slip_mm_at_s   # when each extreme was reached
+    mon.start_motion(t_s)        # from t_s on, also the extremes over the motion alone:
+    mon.motion.cop_margin_min_mm, mon.motion.trunk_tilt_max_deg (and their ``_at_s``)
     mon.last                     # the last sampled ``GroundTruth`` (CoP, support polygon, forces)
     mon.diverged                 # None, or why the simulation stopped being one (and diverged_at_s)
 
@@ -23,6 +26,13 @@ What it measures (the plant's ground truth, never visible to the firmware or the
   foot pads touching the platform (negative outside it; ``-inf`` while nothing touches);
 - right after each leg board's own tick, the distance between the CoP that board computed from
   its force sensors (seed 000, ``calcCoP``) and the true CoP of its foot: ``cop_error_rms_mm``.
+
+Each extreme comes with the simulated time of the first sample that reached it (``..._at_s``).
+The same extremes are also kept over **the motion alone** (:attr:`Monitor.motion`), from the
+instant :meth:`Monitor.start_motion` names: :class:`~humanoid_twin.rig.Rig` sets it
+:data:`CONTROLLERS_START_S` after the boot's end, once the controllers the scenario's program set
+have taken hold, so that a sweep over the platform's tilt shows the tilt's effect, not the
+start-up (docs/scenarios.md, "When").
 
 It only reads the plant; a run with and without it is the same run (its CAN log is identical).
 """
@@ -40,10 +50,40 @@ from humanoid_twin.hardware import FOOT_OF_SCU, PWM_PERIOD_US
 from humanoid_twin.plant.plant import GroundTruth
 from humanoid_twin.twin import Twin
 
-__all__ = ["Monitor", "SAMPLE_PERIOD_US"]
+__all__ = ["Monitor", "Extremes", "SAMPLE_PERIOD_US", "CONTROLLERS_START_S"]
 
 SAMPLE_PERIOD_US = PWM_PERIOD_US      # one sample of the truth per PWM period (20 ms)
 SOLE_ON_SURFACE_MM = 5.0              # a sole origin this close to the platform stands on it (slip_mm)
+# The controllers' start: how long after the boot's end the extremes "over the motion alone"
+# begin. The scenario's program sets the leg boards' control types and gains as the boot ends;
+# the balance laws then take hold of a robot that stood on open-loop positions, and its CoP makes
+# one large swing before the laws' steady motion (``stand``, seed 0: the swing's low, 34.75 mm
+# from the edge, falls at 4.20 s, 1.55 s after the boot, whatever the platform's tilt; from 4.40 s
+# on the margin stays within the steady swings). 2 s covers it.
+CONTROLLERS_START_S = 2.0
+
+
+@dataclass
+class Extremes:
+    """The largest trunk tilt and the smallest CoP margin over a span of samples, each with the
+    simulated time of the first sample that reached it (None: no sample yet)."""
+
+    trunk_tilt_max_deg: float = 0.0
+    trunk_tilt_max_at_s: float | None = None
+    cop_margin_min_mm: float = math.inf
+    cop_margin_min_at_s: float | None = None
+    samples: int = 0
+
+    def add(self, t_s: float, tilt: float, margin: float) -> None:
+        """One sample at ``t_s``: a NaN leaves both (max()/min() semantics of the comparisons)."""
+        self.samples += 1
+        first = self.trunk_tilt_max_at_s is None
+        if tilt > self.trunk_tilt_max_deg or (first and tilt >= self.trunk_tilt_max_deg):
+            self.trunk_tilt_max_deg = tilt
+            self.trunk_tilt_max_at_s = t_s
+        if margin < self.cop_margin_min_mm:
+            self.cop_margin_min_mm = margin
+            self.cop_margin_min_at_s = t_s
 
 
 @dataclass
@@ -53,9 +93,13 @@ class Monitor:
     Attributes, updated while the twin runs: ``fell`` / ``fell_at_s`` (first sample that saw the
     robot fallen), ``trunk_tilt_max_deg``, ``slip_mm`` (the largest distance a sole moved along
     the platform while standing on it, since it was set down), ``cop_margin_min_mm`` (``inf`` before the first
-    sample, ``-inf`` if nothing touched the platform at some sample), ``samples`` (number of
-    truth samples) and ``last`` (the last :class:`GroundTruth` sampled, ``None`` before the
-    first); property :attr:`cop_error_rms_mm`. Samples before ``start_s`` are ignored.
+    sample, ``-inf`` if nothing touched the platform at some sample), each with the time of the
+    first sample that reached it (``trunk_tilt_max_at_s``, ``slip_mm_at_s``,
+    ``cop_margin_min_at_s``; None before), ``motion`` (the same extremes from
+    :meth:`start_motion`'s instant on: an :class:`Extremes`, None before it is called),
+    ``samples`` (number of truth samples) and ``last`` (the last :class:`GroundTruth` sampled,
+    ``None`` before the first); property :attr:`cop_error_rms_mm`. Samples before ``start_s``
+    are ignored.
     """
 
     twin: Twin
@@ -76,6 +120,16 @@ class Monitor:
     diverged: str | None = None
     diverged_at_s: float | None = None
     on_diverged: Callable[[], None] | None = field(default=None, repr=False)
+    trunk_tilt_max_at_s: float | None = None
+    cop_margin_min_at_s: float | None = None
+    slip_mm_at_s: float | None = None
+    motion: Extremes | None = None
+    motion_from_s: float | None = None
+
+    def start_motion(self, t_s: float) -> None:
+        """Keep the extremes over the motion alone (:attr:`motion`) from virtual time ``t_s`` on."""
+        self.motion_from_s = t_s
+        self.motion = Extremes()
 
     def attach(self) -> None:
         """Register on the twin's clock: the truth every 20 ms, and the CoP comparison of each
@@ -106,13 +160,20 @@ class Monitor:
         if gt.fell and not self.fell:
             self.fell = True
             self.fell_at_s = twin.now_s
+        now_s = twin.now_s
         tilt = gt.trunk_tilt_deg
-        if tilt > self.trunk_tilt_max_deg:          # max(): NaN leaves it
+        if tilt > self.trunk_tilt_max_deg or (self.trunk_tilt_max_at_s is None
+                                              and tilt >= self.trunk_tilt_max_deg):   # NaN leaves it
             self.trunk_tilt_max_deg = tilt
+            self.trunk_tilt_max_at_s = now_s
         # -inf when nothing touches the platform (the robot is in the air or lying)
         margin = gt.cop_margin_mm
         if margin < self.cop_margin_min_mm:         # min(): NaN leaves it
             self.cop_margin_min_mm = margin
+            self.cop_margin_min_at_s = now_s
+        motion = self.motion
+        if motion is not None and self.motion_from_s is not None and now_s >= self.motion_from_s:
+            motion.add(now_s, tilt, margin)
         # how far a foot standing on the platform has slid since it was set down (in the
         # platform's frame): the first sample, or the first sample after it was lifted (more
         # than SOLE_ON_SURFACE_MM above the surface: a step is not a slide)
@@ -131,6 +192,7 @@ class Monitor:
             d = math.hypot(x - r[0], y - r[1])
             if d > self.slip_mm:
                 self.slip_mm = d
+                self.slip_mm_at_s = now_s
 
     def compare_cop(self, scu: int, foot: str) -> None:
         """Firmware CoP of board ``scu`` (computed at its tick, just now) vs the contact CoP."""

@@ -42,7 +42,7 @@ from humanoid_twin.host import drivers
 from humanoid_twin.host.motion import power_on
 from humanoid_twin.host.timebase import sleep as host_sleep
 from humanoid_twin.master.supervisor import ESTOP, READY, SAFE, SupervisorConfig
-from humanoid_twin.monitor import Monitor
+from humanoid_twin.monitor import CONTROLLERS_START_S, Monitor
 from humanoid_twin.slave.laws import install_laws
 from humanoid_twin.twin import Twin
 
@@ -199,8 +199,8 @@ class Rig:
     Attributes: ``twin``, ``monitor`` (attached when ``opts.monitor``), ``report`` (the boards'
     task load, deadline misses and IMU error: humanoid_twin/board_report.py), ``injector``,
     ``recorder``, ``canlog`` and ``seriallog`` (None when not asked for), ``H`` (the host's port once
-    :meth:`boot` ran), ``boot_s``, ``host_error`` (a request that failed while the run went on),
-    ``end_s``.
+    :meth:`boot` ran), ``boot_s``, ``boot_error`` (why the boot failed, when the run went on: None
+    when it worked), ``host_error`` (a request that failed while the run went on), ``end_s``.
     """
 
     def __init__(self, opts: RigOptions | None = None, *, expected_s: float | None = None,
@@ -213,6 +213,7 @@ class Rig:
         self.seriallog: Any = None
         self.H: Any = None
         self.boot_s: float | None = None
+        self.boot_error: str | None = None
         self.host_error: str | None = None
         self.end_s: float | None = None
         self.twin = Twin(seed=opts.seed, can_interface=opts.can_interface, can_channel=opts.can_channel,
@@ -273,16 +274,21 @@ class Rig:
 
     def boot(self) -> Any:
         """Boot the twin (:func:`boot`; time advances here) and start the platform's tilt from
-        the boot's end. A failed boot the run tolerates (:meth:`tolerates`) is kept in
-        :attr:`host_error`; otherwise :class:`BootError`. Returns the host's port ``H``."""
+        the boot's end; the monitor's extremes over the motion alone start
+        :data:`~humanoid_twin.monitor.CONTROLLERS_START_S` later. A failed boot the run
+        tolerates (:meth:`tolerates`) is kept in :attr:`boot_error` and :attr:`host_error` (no
+        motion follows it); otherwise :class:`BootError`. Returns the host's port ``H``."""
         try:
             self.H = boot(self.twin)
         except BootError as exc:
             if not self.tolerates():
                 raise
             self.H = exc.port
+            self.boot_error = str(exc.__cause__)
             self.host_error = f"boot: {exc.__cause__}"   # the supervisor stopped the boot: the run goes on
         self.boot_s = self.twin.now_s
+        if self.boot_error is None:
+            self.monitor.start_motion(self.boot_s + CONTROLLERS_START_S)
         self.start_tilt(self.boot_s)
         return self.H
 

@@ -421,11 +421,12 @@ def load_scenario(ref: str | Scenario) -> Scenario:
         where, attr = split_reference(ref)
         if not where or not attr:
             raise ScenarioLoadError(f"scenario {ref!r}: expected FILE.py:NAME or MODULE:NAME")
-        obj: Any = _import(ref, where)
+        module: Any = _import(ref, where)
         try:
-            obj = attribute_path(obj, attr)
+            obj: Any = attribute_path(module, attr)
         except AttributeError:
-            raise ScenarioLoadError(f"scenario {ref!r}: {where} has no {attr!r}") from None
+            hint = _hint(module, where, attr)
+            raise ScenarioLoadError(f"scenario {ref!r}: {where} has no {attr!r}{hint}") from None
     else:
         from importlib.metadata import entry_points
 
@@ -434,7 +435,7 @@ def load_scenario(ref: str | Scenario) -> Scenario:
             raise ScenarioLoadError(
                 f"unknown scenario {ref!r} (choose from {', '.join(REGISTRY)}; or FILE.py:NAME, "
                 f"MODULE:NAME, an entry point of {ENTRY_POINT_GROUP!r}: "
-                f"{', '.join(entry_point_names()) or 'none installed'})")
+                f"{', '.join(entry_point_names()) or 'none installed'}){did_you_mean(ref)}")
         try:
             obj = eps[0].load()
         except BaseException as exc:       # noqa: BLE001 - a user's package: judged, not trusted
@@ -450,6 +451,34 @@ def load_scenario(ref: str | Scenario) -> Scenario:
                                 "(the default recording is NAME.rrd): give it a name without '/'")
     _loaded[ref] = obj
     return obj
+
+
+def did_you_mean(name: str) -> str:
+    """``"; did you mean stand?"`` for a misspelt scenario name (the built-in ones and the entry
+    points), or nothing."""
+    import difflib
+
+    close = difflib.get_close_matches(name, [*REGISTRY, *entry_point_names()], n=1, cutoff=0.6)
+    return f"; did you mean {close[0]}?" if close else ""
+
+
+def _hint(module: Any, where: str, attr: str) -> str:
+    """What a module that lacks ``attr`` holds instead: its :class:`Scenario` objects, by the names
+    a reference takes (the variables), and the one whose ``name`` is ``attr`` when there is one
+    (a scenario is named by its variable, not by its ``name`` field)."""
+    found = {var: obj for var, obj in vars(module).items()
+             if isinstance(obj, Scenario) and not var.startswith("_")}
+    if not found:
+        return " (it holds no Scenario object)"
+    by_name = [var for var, obj in found.items() if obj.name == attr]
+    if by_name:
+        return (f": {attr!r} is the name of its Scenario object {by_name[0]!r}; a reference names the "
+                f"variable: {where}:{by_name[0]}")
+    import difflib
+
+    close = difflib.get_close_matches(attr, list(found), n=1)
+    guess = f"; did you mean {close[0]}?" if close else ""
+    return f" (its Scenario objects: {', '.join(found)}){guess}"
 
 
 def _import(ref: str, where: str) -> Any:
@@ -727,7 +756,8 @@ def scenario_plan(spec: Scenario, label: str, T: float | None, motion: float | N
 
 
 def run(opts: RunOptions, on_progress: Callable[[float, float | None], None] | None = None,
-        on_twin: Callable[[Any], None] | None = None) -> dict[str, Any]:
+        on_twin: Callable[[Any], None] | None = None,
+        on_boot: Callable[[float, str | None], None] | None = None) -> dict[str, Any]:
     """Run one scenario headless and return its summary (docs/scenarios.md).
 
     ``on_progress(t_s, end_s)`` is called every 0.1 s of virtual time: ``end_s`` is None during
@@ -737,7 +767,11 @@ def run(opts: RunOptions, on_progress: Callable[[float, float | None], None] | N
     The run ends at its duration (``opts.duration``, or boot + ``motion_s`` or the tilt + 2 s)
     whatever the scenario's program does (``completed: false`` when it was cut, in the boot
     too); ``opts.wall_timeout`` is armed from this function's first line; a simulation that
-    diverges ends the run there (``outcome: diverged``)."""
+    diverges ends the run there (``outcome: diverged``).
+
+    ``on_boot(t_s, error)`` is called once the boot is over, before ``on_progress`` hears of the
+    run's end: ``error`` None when it worked, else why it failed (a run that tolerates it goes
+    on without the scenario's program: the summary's ``booted`` false)."""
     outer = wall_timeout_armed()
     rig: Rig | None = None
     try:
@@ -753,7 +787,7 @@ def run(opts: RunOptions, on_progress: Callable[[float, float | None], None] | N
         # MuJoCo's instability warning is the run's divergence, reported once (the summary's
         # ``diverged``) rather than as a warning line of its own
         with quiet_instability_warnings(), _open_rig(opts, expected_s, on_twin, on_progress) as rig:
-            summary = _run_rig(rig, opts, spec, label, the_plan, motion_s, host_step, wall0)
+            summary = _run_rig(rig, opts, spec, label, the_plan, motion_s, host_step, wall0, on_boot)
         note_recording(summary, rig)
         return summary
     except WallTimeoutExpired:
@@ -767,7 +801,8 @@ def run(opts: RunOptions, on_progress: Callable[[float, float | None], None] | N
 
 
 def _run_rig(rig: Rig, opts: RunOptions, spec: Scenario, label: str, the_plan: Plan, motion_s: float,
-             host_step: Callable[..., Any] | None, wall0: float) -> dict[str, Any]:
+             host_step: Callable[..., Any] | None, wall0: float,
+             on_boot: Callable[[float, str | None], None] | None = None) -> dict[str, Any]:
     """boot -> drive -> host controller -> settle on an assembled rig, then the summary. The
     run's end is armed before the boot when ``--duration`` is given (faults that stretch the boot
     past it cut the boot: ``boot_s`` None), else at the boot's end; a divergence ends the run."""
@@ -779,12 +814,15 @@ def _run_rig(rig: Rig, opts: RunOptions, spec: Scenario, label: str, the_plan: P
     completed, host_calls = True, None
     try:
         rig.boot()                                   # time advances here: the boot
+        if on_boot is not None:
+            on_boot(rig.now_s, rig.boot_error)
         duration = rig.end_s = _duration(opts, rig.now_s, motion_s)
         end.arm(duration)
         if rig.host_error is None and (not spec.moves or duration > rig.now_s):
             _drive(spec, rig, the_plan, label)       # time advances here: the scenario's program
         end.disarm()
-        completed = not end.fired                    # a program that swallowed its cut
+        # a program that swallowed its cut; a failed boot: no program ran
+        completed = not end.fired and rig.boot_error is None
         if host_step is not None and rig.host_error is None:
             host_calls = _host_controller(rig, host_step, duration, opts.host_period_ms)
         rig.sleep_until(duration)                    # time advances here: the robot settles

@@ -11,16 +11,17 @@ import numpy as np
 
 from humanoid_twin.cycles import DEFAULT_PIC_MHZ
 from humanoid_twin.faults import FaultSpec
+from humanoid_twin.monitor import CONTROLLERS_START_S
 from humanoid_twin.params import params_digest
-from humanoid_twin.protocol.wire import ControlType
+from humanoid_twin.protocol.wire import SCUS, ControlType
 from humanoid_twin.twin import Twin
 
 if TYPE_CHECKING:
     from humanoid_twin.rig import Rig
     from humanoid_twin.scenarios import Plan
 
-__all__ = ["SUMMARY_KEYS", "summary_keys_markdown", "build_summary", "outcome", "SLIP_HELD_MM",
-           "NO_SUPPORT_MARGIN_MM", "FOOT_SCUS"]
+__all__ = ["SUMMARY_KEYS", "SUMMARY_SUBKEYS", "summary_keys_markdown", "build_summary", "outcome",
+           "SLIP_HELD_MM", "NO_SUPPORT_MARGIN_MM", "FOOT_SCUS", "plain_value", "table_cells", "table_columns"]
 
 FOOT_SCUS = (1, 2)      # the leg boards (foot lateral, foot front, knee): the summary's ``control``
 
@@ -32,21 +33,30 @@ def build_summary(rig: Rig, scenario: str, plan: Plan, *, completed: bool, wall_
     twin, monitor, opts = rig.twin, rig.monitor, rig.opts
     sup = twin.master.supervisor
     started = [s for s in opts.faults if _started(s, rig)]
+    motion = monitor.motion if monitor.motion is not None and monitor.motion.samples else None
     summary: dict[str, Any] = {
         "scenario": scenario,
         "duration_s": round(twin.now_s, 6),
         "fell": monitor.fell,
         "fell_at_s": monitor.fell_at_s,
         "trunk_tilt_max_deg": round(monitor.trunk_tilt_max_deg, 3),
+        "trunk_tilt_max_at_s": _time(monitor.trunk_tilt_max_at_s),
+        "trunk_tilt_max_motion_deg": None if motion is None else round(motion.trunk_tilt_max_deg, 3),
+        "trunk_tilt_max_motion_at_s": None if motion is None else _time(motion.trunk_tilt_max_at_s),
         "slip_mm": round(monitor.slip_mm, 1),
+        "slip_mm_at_s": _time(monitor.slip_mm_at_s),
         "outcome": "diverged" if monitor.diverged is not None else outcome(monitor.fell, monitor.slip_mm),
         "cop_margin_min_mm": _finite(monitor.cop_margin_min_mm),
+        "cop_margin_min_at_s": _time(monitor.cop_margin_min_at_s),
+        "cop_margin_min_motion_mm": None if motion is None else _finite(motion.cop_margin_min_mm),
+        "cop_margin_min_motion_at_s": None if motion is None else _time(motion.cop_margin_min_at_s),
         "cop_error_rms_mm": _round(monitor.cop_error_rms_mm),
         "wall_s": round(wall_s, 3),
         "rtf": round(twin.now_s / wall_s, 3) if wall_s > 0 else None,
         "can_frames": twin.network.frames_sent,
         "serial_frames": twin.master.stats()["serial_frames_received"],
         "boot_s": None if rig.boot_s is None else round(rig.boot_s, 3),
+        "booted": rig.boot_error is None,
         "completed": completed,
         "tilt_deg": opts.tilt,
         "control": _control_label(plan),
@@ -114,9 +124,16 @@ SUMMARY_KEYS: dict[str, str] = {
             "from both the vertical and the platform's normal (humanoid_twin/models/README.md section 9)",
     "fell_at_s": "the first sample that saw the robot fallen (none: it did not fall)",
     "trunk_tilt_max_deg": "largest angle between the trunk's z axis and the vertical",
+    "trunk_tilt_max_at_s": "when (simulated s from power-on) `trunk_tilt_max_deg` was first reached",
+    "trunk_tilt_max_motion_deg": "`trunk_tilt_max_deg` over the motion alone: the samples from "
+                                 f"{CONTROLLERS_START_S:g} s after the boot's end (the controllers' start: "
+                                 "docs/scenarios.md, \"When\") to the run's end; none when the boot "
+                                 "failed or the run ended before",
+    "trunk_tilt_max_motion_at_s": "when `trunk_tilt_max_motion_deg` was first reached",
     "slip_mm": "the largest distance a sole moved along the platform's surface while standing on it "
                "(since the run began, or since that foot was last set down): feet sliding down a "
                "tilted platform, not a fall",
+    "slip_mm_at_s": "when the sole's slide reached `slip_mm` (none: no sole moved)",
     "outcome": "the run in one word: `fell`; `slid` (not fallen, but `slip_mm` reached 10 mm: a foot "
                "rolling onto an edge of its pads moves a few mm without sliding); `held`; `diverged` (the "
                "simulation blew up, see `diverged`: the run ended there, exit code 1; not a result)",
@@ -124,6 +141,10 @@ SUMMARY_KEYS: dict[str, str] = {
                          "the support polygon (hull of the foot pads in contact), sampled every 20 ms; "
                          "negative when outside; **-1000** when at some sample no pad touched the "
                          "platform (the robot in the air or lying)",
+    "cop_margin_min_at_s": "when `cop_margin_min_mm` was first reached",
+    "cop_margin_min_motion_mm": "`cop_margin_min_mm` over the motion alone (as "
+                                "`trunk_tilt_max_motion_deg`): what a sweep over the tilt should plot",
+    "cop_margin_min_motion_at_s": "when `cop_margin_min_motion_mm` was first reached",
     "cop_error_rms_mm": "RMS distance between each leg board's firmware CoP (`calcCoP`, 7-bit forces, "
                         "integer mm) and the contact-force CoP of its foot, compared right after the "
                         "board's own 20 ms tick, while the foot is loaded and the board calibrated",
@@ -133,8 +154,10 @@ SUMMARY_KEYS: dict[str, str] = {
     "serial_frames": "RS-232 requests the Master received",
     "boot_s": "when the boot ended (virtual seconds); none when the run ended before it did (faults "
               "stretched the boot past `--duration`)",
+    "booted": "true when every board reported PWM on and calibrated (the boot worked); false: the "
+              "boot failed (`host_error` says why) and the scenario's program did not run",
     "completed": "false when the run's end (`--duration`, or the default one) cut the boot or the "
-                 "scenario's program before its end, or the simulation diverged; else true",
+                 "scenario's program before its end, the boot failed, or the simulation diverged; else true",
     "tilt_deg": "the platform's tilt asked for (`--tilt`)",
     "control": "the control type(s) the leg boards (SCU 1-2) ran, `+` between them: the scenario's "
                "own (`stand`: `balance`) or `--control`'s",
@@ -177,6 +200,54 @@ SUMMARY_KEYS: dict[str, str] = {
 }
 
 
+# the keys whose value is a dict, and that dict's keys: a sweep's table gives each its own column,
+# ``KEY_SUB`` (``task_load_max_slaves``, ``deadline_misses_3``: humanoid_twin/board_report.py)
+SUMMARY_SUBKEYS: dict[str, tuple[str, ...]] = {
+    "task_load_max": ("slaves", "master"),
+    "deadline_misses": ("master", *(str(scu) for scu in SCUS)),
+}
+
+
+def plain_value(value: object) -> str:
+    """A summary value as a person reads it (the run's table, a sweep table's list cells): ``-``
+    for none, ``yes``/``no``, lists one item after another, ``; `` between them (a dict as
+    ``key=value`` pairs), no Python reprs."""
+    if value is None:
+        return "-"
+    if isinstance(value, bool):
+        return "yes" if value else "no"
+    if isinstance(value, dict):
+        return " ".join(f"{k}={plain_value(v)}" for k, v in value.items())
+    if isinstance(value, list | tuple):
+        return "; ".join(plain_value(v) for v in value) if value else "-"
+    return str(value)
+
+
+def table_cells(summary: dict[str, Any]) -> dict[str, Any]:
+    """A run's summary as the cells of a table row (a sweep's): a dict of numbers becomes one
+    column per key (:data:`SUMMARY_SUBKEYS`: ``task_load_max_slaves`` ...), a list the words of
+    the run's own table (:func:`plain_value`; an empty one, none), every other value as it is;
+    no JSON text in a cell."""
+    cells: dict[str, Any] = {}
+    for key, value in summary.items():
+        if isinstance(value, dict):
+            for sub, v in value.items():
+                cells[f"{key}_{sub}"] = plain_value(v) if isinstance(v, list | tuple | dict) else v
+        elif isinstance(value, list | tuple):
+            cells[key] = plain_value(value) if value else None
+        else:
+            cells[key] = value
+    return cells
+
+
+def table_columns() -> list[str]:
+    """Every column :func:`table_cells` can give, in the summary's order."""
+    cols: list[str] = []
+    for key in SUMMARY_KEYS:
+        cols += [f"{key}_{sub}" for sub in SUMMARY_SUBKEYS[key]] if key in SUMMARY_SUBKEYS else [key]
+    return cols
+
+
 def summary_keys_markdown() -> str:
     """docs/scenarios.md's table of the summary's keys, from :data:`SUMMARY_KEYS`."""
     lines = ["| key | meaning |", "|---|---|"]
@@ -213,6 +284,11 @@ def _law_label(twin: Twin, the_plan: Plan) -> str:
 
 def _round(x: float | None) -> float | None:
     return None if x is None else round(x, 3)
+
+
+def _time(t_s: float | None) -> float | None:
+    """A sample's simulated time (s), to the microsecond of the clock."""
+    return None if t_s is None else round(t_s, 6)
 
 
 # cop_margin_min_mm when no foot pad touched the platform at some sample (airborne or fallen):

@@ -154,7 +154,7 @@ def tilt_limits(todo: list[Line], runs: Path, jobs: int | None, backend: str, ad
         for ln, row in zip(open_lines, rows, strict=True):
             if row.get("error"):
                 raise RuntimeError(f"{ln} at {tilts[ln]} deg: {row['error']}")
-            ok = str(row["held"]) == "True"
+            ok = str(row["held"]).lower() == "true"       # a bool, or a CSV's true (or an older True)
             if step == 0:
                 if ok:
                     limit[ln] = ln[3] * TILT_MAX_DEG

@@ -29,6 +29,12 @@ the same identifiers; only the body board's Sensors 2 packets (0x285) carry othe
 3 us (their bit stuffing). The summaries gained ``task_load_max``, ``deadline_misses`` and
 ``imu_tilt_error_rms_deg``; every other key is unchanged.
 
+Regenerated for the summaries alone by issue 37 (the summary says when): every CAN log, frame
+count and exit code is unchanged, and so is every key the summaries held; they gained
+``trunk_tilt_max_at_s``, ``trunk_tilt_max_motion_deg``, ``trunk_tilt_max_motion_at_s``,
+``slip_mm_at_s``, ``cop_margin_min_at_s``, ``cop_margin_min_motion_mm``,
+``cop_margin_min_motion_at_s`` and ``booted``.
+
 Regenerate only when a change of behaviour is deliberate (and say so in the commit message):
 
     PYTHONPATH=TREE .venv/bin/python tests/test_golden.py --hashseeds 0,1  # new digests vs the pinned ones
@@ -82,28 +88,28 @@ RUNS: dict[str, tuple[str, ...]] = {
 GOLDEN: dict[str, dict[str, Any]] = {
     "flexao_seed0": {"exit": 0, "frames": 21480,
         "can_sha256": "80d6a46576845c5e33778857e2bd7b9150c0b3ebb2227ebc8151dd2e4a56dd2b",
-        "summary_sha256": "a346653dbf342a4912ba48aa865caf1ef8dfa89b01798dcebd1a55699daafc1b"},
+        "summary_sha256": "008b06ded190b105e654a272048085704916c2c024978bbf2f48595cdfabc661"},
     "inclinar_seed2": {"exit": 0, "frames": 21487,
         "can_sha256": "2c7b90c0c8f831de74bb38df2633aa1f50f840799425f703531b412165baa175",
-        "summary_sha256": "097501757506ce64b4dd2c3a3dd2477478e542a3ca9211dc9e23de9f2c42388d"},
+        "summary_sha256": "741815fe54e18531e96e4a3627bbb4f448bfe59ca28285c2a0e95836313467aa"},
     "levantar_perna_1": {"exit": 0, "frames": 51880,
         "can_sha256": "47414a455fb9bd926f20281dcd60189bb18b343da3c84196dab3410eaa153ee2",
-        "summary_sha256": "2a445405aa7a9da40563a608aad0c4f868804f51b17ff4bbf4f8b0c1eae82c1b"},
+        "summary_sha256": "6eb11bacba79994105b7fd2a0d4eb672ca779507b3e905daaa951a6bd26128a2"},
     "levantar_perna_2": {"exit": 0, "frames": 51880,
         "can_sha256": "4e7d346b543ec7c0a6732fa65efe7b0e8adebe8f1fc919321854d24d798fba8d",
-        "summary_sha256": "39a5e1080abd59b16c4bba003ae9a2d572ec071b041903b007d71f49349bd649"},
+        "summary_sha256": "5769478f3ce9349e06339b84f02ea4fe445d6c2b1676e693285a96e710508949"},
     "stand_tilt15": {"exit": 0, "frames": 74680,
         "can_sha256": "620cedc39cc92134939ef4ecc28bbbb2f46e4be39257fab1eb5ad6e7269049db",
-        "summary_sha256": "e306d3a478090ecf833f17d5e0ab9aeedfed1d5a3b52d2b7bacb0100fabadd89"},
+        "summary_sha256": "9d251deb83a3d4a29e9a2e420aaee253b2964eedc10d173983040108a73146f2"},
     "flexao_can_drop": {"exit": 0, "frames": 20996,
         "can_sha256": "0918701ae18ee7ce5174bc3b00789ab57cda3f8a073c0b1c335a232d3aaad0f1",
-        "summary_sha256": "79cc9337a630f046b8ba5d5750d2dc75de10277914c47d671c4bd5452869260f"},
+        "summary_sha256": "5972eba099a2b6f160a1854ed4ca17adac92992198cf41b40a42e35418ef9427"},
     "flexao_bus_off_1": {"exit": 3, "frames": 21475,
         "can_sha256": "2ad2fd2fa7bbf86f687e62f82fd4fc047ce9efe18120b17b5a3ef249c6b968db",
-        "summary_sha256": "5b6fbee7db4d933f408faef7cf48d619e633deeea2e7c0c1338b8a665b260d9b"},
+        "summary_sha256": "98bbc272b670e8bc4234e2d67bfb9e8af9dde8fab4f2d9972461f557a11a2ea1"},
     "flexao_silent_3": {"exit": 3, "frames": 20950,
         "can_sha256": "25665970116efb76eb45761adcd7d2dac0134937d32eceff306035709ab09a83",
-        "summary_sha256": "c92495129eeacf5e327de372b86d1100185602a3d192a3f01651fd7b6f338d24"},
+        "summary_sha256": "9d35f17d8144297d7714321c331d59dcd4e71795eb2070be6f4a24e00116c619"},
 }
 # END GOLDEN
 

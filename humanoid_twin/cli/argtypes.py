@@ -36,6 +36,9 @@ non_negative_seconds = checked(float, "a number of seconds", lambda v: v >= 0,
                                "must be a number of seconds >= 0")
 degrees_90 = checked(float, "a number of degrees", lambda v: abs(v) <= 90,
                      "must be within -90..90 degrees")
+# a finite number of degrees, its range checked later by the one check of what it sets (--tilt:
+# the platform's TILT_MAX_DEG, cli/options.check_rig_inputs): one range quoted, never two
+degrees = checked(float, "a number of degrees", lambda v: True, "must be a finite number of degrees")
 # a wall-clock limit: positive and finite, at most 10**7 s (~116 days; the interval timer's range)
 wall_seconds = checked(float, "a number of seconds", lambda v: 0 < v <= 1e7,
                        "must be a number of seconds, 0 < S <= 10000000")

@@ -41,6 +41,7 @@ from humanoid_twin.cli.argtypes import (
 from humanoid_twin.cli.options import (
     add_host_controller_options,
     add_rig_options,
+    cannot_write_in,
     check_rig_inputs,
     load_scenario_arg,
     rig_fields,
@@ -53,7 +54,10 @@ EXIT_SUPERVISOR = 3     # the run ended with the supervisor in safe or estop (do
 
 
 class _Parser(argparse.ArgumentParser):
-    """argparse, but errors are one line (``humanoid-twin: error: ...``) and exit 2."""
+    """argparse, but errors are one line (``humanoid-twin: error: ...``) and exit 2. The top
+    parser's ``run_parser`` is its ``run`` subcommand (a sweep's columns are its options)."""
+
+    run_parser: argparse.ArgumentParser | None = None
 
     def error(self, message: str) -> None:  # type: ignore[override]
         raise _usage_error(message)
@@ -204,6 +208,7 @@ def build_parser() -> argparse.ArgumentParser:
     view.add_argument("--web", action="store_true",
                       help="serve rerun's web viewer on 127.0.0.1 and print its URL (no display needed)")
     view.add_argument("--port", type=int, default=9090, help="HTTP port of --web (default 9090)")
+    parser.run_parser = run
     return parser
 
 
@@ -238,6 +243,9 @@ def _check_writable(path: Path, what: str) -> Path:
         raise _usage_error(f"{what} {path}: directory {parent} does not exist")
     if not os.access(parent, os.W_OK) or (target.exists() and not os.access(target, os.W_OK)):
         raise _usage_error(f"{what} {path} is not writable")
+    why = cannot_write_in(parent)
+    if why is not None:
+        raise _usage_error(f"{what} {path}: cannot write in {parent}: {why}")
     if len(os.fsencode(target.name)) > NAME_MAX:
         raise _usage_error(f"{what}: the file name is longer than {NAME_MAX} bytes")
     return target
@@ -519,7 +527,8 @@ def _run(args: argparse.Namespace, opts: Any, outputs: _Outputs) -> int:
     try:
         try:
             summary = run(opts, on_progress=None if bar is None else bar.update,
-                          on_twin=None if live is None else live.attach)
+                          on_twin=None if live is None else live.attach,
+                          on_boot=None if bar is None else bar.boot_ended)
         finally:
             disarm_wall_timeout()        # the run is over: what is left is the CLI's own work
     except ScenarioInputError as exc:
@@ -589,24 +598,12 @@ def _one_line(text: str, limit: int = 500) -> str:
     return text if len(text) <= limit else text[: limit - 3] + "..."
 
 
-def _plain(value: object) -> str:
-    """A summary value as a person reads it: ``-`` for none, ``yes``/``no``, lists one item after
-    another (a dict as ``key=value`` pairs), no Python reprs."""
-    if value is None:
-        return "-"
-    if isinstance(value, bool):
-        return "yes" if value else "no"
-    if isinstance(value, dict):
-        return " ".join(f"{k}={_plain(v)}" for k, v in value.items())
-    if isinstance(value, list | tuple):
-        return "; ".join(_plain(v) for v in value) if value else "-"
-    return str(value)
-
-
 def summary_table(summary: dict) -> str:
     """The human summary: one ``key  value`` line per key, plain values (docs/scenarios.md)."""
+    from humanoid_twin.summary import plain_value
+
     width = max(len(k) for k in summary)
-    return "".join(f"{key:<{width}}  {_plain(value)}\n" for key, value in summary.items())
+    return "".join(f"{key:<{width}}  {plain_value(value)}\n" for key, value in summary.items())
 
 
 def _print_summary(summary: dict, as_json: bool, out: Any) -> None:

@@ -17,7 +17,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from humanoid_twin.cli.argtypes import checked, degrees_90
+from humanoid_twin.cli.argtypes import checked, degrees
 from humanoid_twin.seeds import SEED_MAX
 
 EXIT_USAGE = 2
@@ -30,17 +30,41 @@ def usage_error(message: str) -> SystemExit:
     return SystemExit(EXIT_USAGE)
 
 
+def cannot_write_in(directory: Path) -> str | None:
+    """Why a file cannot be created in ``directory`` (an empty one is created and removed: a
+    read-only mount, ``/proc``, ``/sys``, a permission), or None when it can. Checked before the
+    free space, so that an unwritable place is never reported as a full disk."""
+    import tempfile
+
+    try:
+        fd, probe = tempfile.mkstemp(prefix=".humanoid-twin-probe-", dir=directory)
+    except OSError as exc:
+        return exc.strerror or str(exc)
+    os.close(fd)
+    try:
+        os.unlink(probe)
+    except OSError:
+        pass
+    return None
+
+
 # -- definitions -----------------------------------------------------------------------------------
 def scenario_arg(text: str) -> str:
     """An argparse type for a scenario: a built-in name, an entry point's name, or a reference
     ``FILE.py:NAME`` / ``MODULE:NAME`` (imported and checked later, with the other inputs)."""
-    from humanoid_twin.scenarios import ENTRY_POINT_GROUP, REGISTRY, entry_point_names, is_reference
+    from humanoid_twin.scenarios import (
+        ENTRY_POINT_GROUP,
+        REGISTRY,
+        did_you_mean,
+        entry_point_names,
+        is_reference,
+    )
 
     if text in REGISTRY or is_reference(text) or text in entry_point_names():
         return text
     raise argparse.ArgumentTypeError(
         f"invalid choice: {text!r} (choose from {', '.join(REGISTRY)}; or FILE.py:NAME, MODULE:NAME, "
-        f"or an entry point of {ENTRY_POINT_GROUP}; docs/scenarios.md)")
+        f"or an entry point of {ENTRY_POINT_GROUP}; docs/scenarios.md){did_you_mean(text)}")
 
 
 def add_can_options(p: argparse.ArgumentParser) -> None:
@@ -78,8 +102,11 @@ def add_rig_options(p: argparse.ArgumentParser, out_help: str) -> None:
                    ".csv .trc ...), python-can writers")
     p.add_argument("--serial-log", type=Path, metavar="FILE", help="log every RS-232 byte each way with its "
                    "virtual time (text); replay it with humanoid-twin replay FILE (docs/buses.md)")
-    p.add_argument("--tilt", type=degrees_90, default=0.0, help="tilt the floor platform slowly (1 deg/s, "
-                   "once the robot has booted) about the lateral axis to DEG (toes up positive)")
+    from humanoid_twin.plant.plant import TILT_MAX_DEG
+
+    p.add_argument("--tilt", type=degrees, default=0.0, help="tilt the floor platform slowly (1 deg/s, "
+                   "once the robot has booted) about the lateral axis to DEG (toes up positive; "
+                   f"within +-{TILT_MAX_DEG:g})")
     p.add_argument("--seed", type=int, default=0, help="random seed (sensor noise, servo offsets, "
                    "board phases)")
     add_can_options(p)

@@ -37,6 +37,12 @@ class RunProgress:
         self._boot_end_s: float | None = None
         self._next_pct = 10
         self._last: tuple[float, float | None] | None = None
+        self._boot_error: str | None = None
+
+    def boot_ended(self, t_s: float, error: str | None) -> None:
+        """The boot is over at ``t_s`` (``scenarios.run``'s ``on_boot``): ``error`` None when it
+        worked, else why it failed; the next :meth:`update` says which."""
+        self._boot_error = error
 
     def update(self, t_s: float, end_s: float | None) -> None:
         """Virtual time ``t_s`` reached (called every 0.1 s of virtual time)."""
@@ -84,11 +90,23 @@ class RunProgress:
         if self._boot_bar is not None:
             self._boot_bar.close()
             self._boot_bar = None
+        if self._boot_error is not None:          # on a terminal too: it is what the run shows
+            if self.tty:
+                from tqdm import tqdm
+
+                tqdm.write(f"{self.label}: {self._boot_failed(t_s, end_s)}", file=self.stream)
+            else:
+                self._line(self._boot_failed(t_s, end_s))
         if not self.tty:
             pct = 100.0 * t_s / end_s if end_s > 0 else 100.0
             self._next_pct = 10 * int(pct // 10) + 10
-            self._line(f"booted by {t_s:.1f} s simulated ({time.perf_counter() - self._t0:.1f} s wall); "
-                       f"the run ends at {end_s:.1f} s")
+            if self._boot_error is None:
+                self._line(f"booted by {t_s:.1f} s simulated ({time.perf_counter() - self._t0:.1f} s wall); "
+                           f"the run ends at {end_s:.1f} s")
+
+    def _boot_failed(self, t_s: float, end_s: float) -> str:
+        return (f"the boot FAILED by {t_s:.1f} s simulated: {self._boot_error}; the scenario does not run, "
+                f"the twin runs on to {end_s:.1f} s (the summary's booted: no)")
 
     def _times(self, t_s: float, end_s: float) -> str:
         wall = time.perf_counter() - self._t0

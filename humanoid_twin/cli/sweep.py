@@ -9,7 +9,7 @@ from pathlib import Path
 from typing import Any
 
 from humanoid_twin.cli.argtypes import count, wall_seconds
-from humanoid_twin.cli.options import SEED_MAX, scenario_arg
+from humanoid_twin.cli.options import SEED_MAX, cannot_write_in, scenario_arg
 from humanoid_twin.sweep.engine import (
     BACKENDS,
     DEFAULT_TIMEOUT_S,
@@ -17,6 +17,7 @@ from humanoid_twin.sweep.engine import (
     RunCli,
     _key_value,
     check_backend,
+    flag,
     run_sweep,
 )
 from humanoid_twin.sweep.params import is_set_name, randomized_grid, run_arg
@@ -83,6 +84,9 @@ def _writable_dir(path: Path, what: str) -> None:
         raise SweepError(f"{what} {path}: directory {parent} does not exist")
     if not os.access(parent, os.W_OK):
         raise SweepError(f"{what} {path} is not writable")
+    why = cannot_write_in(parent)
+    if why is not None:
+        raise SweepError(f"{what} {path}: cannot write in {parent}: {why}")
 
 
 def parse_params(specs: list[str]) -> dict[str, list[str]]:
@@ -116,6 +120,7 @@ def plan_sweep(args: argparse.Namespace, parser: argparse.ArgumentParser
     from humanoid_twin.scenarios import split_reference
 
     run_args = list(args.run_args)
+    label = args.scenario                     # the table's scenario: the reference as the user gave it
     where, name = split_reference(args.scenario)
     if where.endswith(".py"):                 # a user's file: found by every run, whatever its cwd
         args.scenario = f"{Path(where).expanduser().resolve()}:{name}"
@@ -129,7 +134,10 @@ def plan_sweep(args: argparse.Namespace, parser: argparse.ArgumentParser
         raise SweepError("--out is the sweep's table; use --recordings DIR for the runs' recordings")
     if given["seed"] != base["seed"] or any(a.startswith("--seed") for a in run_args):
         raise SweepError("--seed: use --seeds N (seeds 0..N-1) or --param seed=S1,S2,...")
-    params = parse_params(args.param)
+    # a parameter's column is named as the option's dest (pic_mhz): --param pic-mhz or pic_mhz
+    params = {n.replace("-", "_"): v for n, v in parse_params(args.param).items()}
+    if len(params) != len(args.param):
+        raise SweepError("a --param is given twice (pic-mhz and pic_mhz are one option)")
     seeds = list(range(args.seeds))
     if "seed" in params:
         if args.seeds != 1:
@@ -143,15 +151,15 @@ def plan_sweep(args: argparse.Namespace, parser: argparse.ArgumentParser
         if is_set_name(name):              # a named parameter or a scenario's field: --set NAME=V
             _check_set_param(name, values)
             continue
-        dest = name.replace("-", "_")
+        dest = name
         if dest not in base or dest in NOT_PARAMS:
             options = sorted(d.replace("_", "-") for d in base if d not in NOT_PARAMS)
-            raise SweepError(f"--param {name}: not a run option a sweep can vary (choose from "
-                             f"{' '.join(options)})")
+            raise SweepError(f"--param {flag(name)[2:]}: not a run option a sweep can vary (choose from "
+                             f"{' '.join(options)}){_did_you_mean(flag(name)[2:], options)}")
         if given[dest] != base[dest]:
-            raise SweepError(f"--{name} is given both as a run option and as --param {name}")
+            raise SweepError(f"{flag(name)} is given both as a run option and as --param {flag(name)[2:]}")
         for v in values:      # run's own checks, one line and exit 2 on a bad value
-            parser.parse_args(["run", args.scenario, "--no-record", *run_args, f"--{name}={v}"])
+            parser.parse_args(["run", args.scenario, "--no-record", *run_args, f"{flag(name)}={v}"])
     n_points = len(seeds) * max(1, len(args.draws))
     for values in params.values():
         n_points *= len(values)
@@ -181,12 +189,16 @@ def plan_sweep(args: argparse.Namespace, parser: argparse.ArgumentParser
             where = where.parent
         if not os.access(where, os.W_OK):
             raise SweepError(f"--recordings {args.recordings} is not writable")
+        why = cannot_write_in(where)
+        if why is not None:
+            raise SweepError(f"--recordings {args.recordings}: cannot write in {where}: {why}")
     if args.plot is not None:
         if args.plot.suffix.lower() != ".png":
             raise SweepError(f"--plot {args.plot}: a plot ends in .png")
         _writable_dir(args.plot, "--plot")
         if args.metric is None or args.x is None:
             raise SweepError("--plot needs --metric KEY and --x PARAM")
+        args.x = args.x.replace("-", "_")     # the column's name (--x pic-mhz: pic_mhz)
         if args.x not in params and args.x != "seed" and not any(r.split("=")[0].strip() == args.x
                                                                   for r in args.randomize):
             given = " ".join(params) or "it has no --param"
@@ -194,7 +206,47 @@ def plan_sweep(args: argparse.Namespace, parser: argparse.ArgumentParser
     elif args.metric is not None or args.x is not None:
         raise SweepError("--metric and --x go with --plot FILE.png")
     recordings = None if args.recordings is None else str(args.recordings)
-    return params, seeds, RunCli(args.scenario, tuple(run_args), recordings, args.timeout)
+    return params, seeds, RunCli(args.scenario, tuple(run_args), recordings, args.timeout, label=label)
+
+
+def _did_you_mean(name: str, choices: list[str]) -> str:
+    import difflib
+
+    close = difflib.get_close_matches(name, choices, n=1)
+    return f"; did you mean {close[0]}?" if close else ""
+
+
+def option_kind(action: argparse.Action) -> str:
+    """The kind of a ``run`` option's values in a table (``int``, ``float``, ``string``): what its
+    own type makes of a value (``1``); text for a list (``--fault``) or a type that refuses it."""
+    if action.type is None or isinstance(action, argparse._AppendAction):
+        return "string"
+    try:
+        value = action.type("1")
+    except (argparse.ArgumentTypeError, TypeError, ValueError):
+        return "string"
+    if isinstance(value, bool):
+        return "bool"
+    return "int" if isinstance(value, int) else "float" if isinstance(value, float) else "string"
+
+
+def known_columns(parser: argparse.ArgumentParser, params: dict[str, list[str]]) -> dict[str, str | None]:
+    """Every column a sweep table can have, and its kind where an option gives it: every run option
+    a sweep can vary (this sweep's ``params`` first), ``seed``, every summary column
+    (``humanoid_twin.summary.table_columns``), ``error`` (:func:`~humanoid_twin.sweep.engine.run_sweep`'s
+    ``known``: a Parquet table carries them all)."""
+    from humanoid_twin.summary import table_columns
+
+    run = parser.run_parser
+    options = {a.dest: option_kind(a) for a in run._actions     # argparse has no public list of them
+               if a.option_strings and a.dest not in NOT_PARAMS and a.dest != "help"
+               and a.nargs != 0}
+    known: dict[str, str | None] = {name: options.get(name) for name in params}
+    known.update({name: kind for name, kind in options.items() if name not in known and name != "seed"})
+    known["seed"] = "int"
+    known.update({c: None for c in table_columns() if c not in known})
+    known["error"] = "string"
+    return known
 
 
 def _check_every_point(args: argparse.Namespace, parser: argparse.ArgumentParser, run_args: list[str],
@@ -321,14 +373,14 @@ def sweep_command(args: argparse.Namespace, parser: argparse.ArgumentParser) -> 
     progress = None if args.no_progress else sys.stderr
     if progress is not None:
         where = args.address or "a local Ray" if args.backend == "ray" else "this machine"
-        progress.write(f"sweep: {len(points)} runs of {args.scenario} on {where}"
+        progress.write(f"sweep: {_runs(len(points))} of {task.label or args.scenario} on {where}"
                        f"{f' ({args.jobs} jobs)' if args.jobs else ''} into {args.out}\n")
 
     try:
         # SIGINT / SIGTERM (humanoid_twin/signals.py): the runs in flight are stopped within ~2 s,
         # the table keeps every finished run, exit 130 / 143
         rows = run_sweep(points, task, args.out, jobs=args.jobs, backend=args.backend,
-                         address=args.address, progress=progress)
+                         address=args.address, progress=progress, known=known_columns(parser, params))
     except KeyboardInterrupt as exc:
         why = "terminated (SIGTERM)" if isinstance(exc, signals.Terminated) else "interrupted"
         sys.stderr.write(f"humanoid-twin: {why}; {args.out} keeps every finished run (the same command "
@@ -338,11 +390,11 @@ def sweep_command(args: argparse.Namespace, parser: argparse.ArgumentParser) -> 
         sys.stderr.write(f"humanoid-twin: error: {exc}\n")
         return 2
     failed = sum(bool(r.get("error")) for r in rows)
-    _say(args, f"{args.out}: {len(rows)} runs, {failed} failed")
+    _say(args, f"{args.out}: {_runs(len(rows))}, {failed} failed")
     if args.plot is not None:
         from humanoid_twin.sweep.plot import plot_sweep
 
-        title = f"sweep {args.scenario}: {args.metric} against {args.x}"
+        title = f"sweep {task.label or args.scenario}: {args.metric} against {args.x}"
         try:
             plot_sweep(rows, args.x, args.metric, args.plot, list(params) + ["seed"], title=title)
         except SweepError as exc:
@@ -358,6 +410,10 @@ def _say(args: argparse.Namespace, line: str) -> None:
     if out is not None:
         out.write(line + "\n")
         out.flush()
+
+
+def _runs(n: int) -> str:
+    return f"{n} run" if n == 1 else f"{n} runs"
 
 
 EXIT_FAILED_BASE = 100     # a sweep with failed runs exits 100 + their number (199: 99 or more)

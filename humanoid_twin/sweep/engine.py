@@ -15,8 +15,8 @@ from pathlib import Path
 from typing import Any, TextIO
 
 from humanoid_twin import signals
-from humanoid_twin.sweep.params import run_arg
-from humanoid_twin.sweep.table import SweepError, cell, read_table, table_format, write_table
+from humanoid_twin.sweep.params import flag, run_arg
+from humanoid_twin.sweep.table import SweepError, cells, read_table, table_format, write_table
 
 BACKENDS = ("local", "ray")
 DEFAULT_TIMEOUT_S = 900.0
@@ -92,12 +92,15 @@ def row_key(row: dict[str, Any], names: Sequence[str]) -> tuple | None:
 class RunCli:
     """Runs one point as ``humanoid-twin run SCENARIO ... --json`` in its own process (the CLI's own
     code path; a crash or a hang is that point's error). ``run_args`` apply to every run;
-    ``recordings``: a folder for one ``.rrd`` per run (default: no recording)."""
+    ``recordings``: a folder for one ``.rrd`` per run (default: no recording); ``label``: the
+    scenario as the row's ``scenario`` names it (default ``scenario``: the sweep makes a user's
+    file absolute for its runs, and keeps the reference the user gave for the table)."""
 
     scenario: str
     run_args: tuple[str, ...] = ()
     recordings: str | None = None
     timeout: float | None = DEFAULT_TIMEOUT_S
+    label: str | None = None
 
     def argv(self, point: Point) -> list[str]:
         argv = [sys.executable, "-m", "humanoid_twin.cli.main", "run", self.scenario, *self.run_args]
@@ -131,9 +134,13 @@ class RunCli:
         # exit 0: done; exit 3: the supervisor ended the run in a safe state, a result like any other
         if returncode in (0, 3) and lines:
             try:
-                return json.loads(lines[-1])
+                summary = json.loads(lines[-1])
             except json.JSONDecodeError:
                 pass
+            else:
+                if self.label is not None and isinstance(summary, dict) and "scenario" in summary:
+                    summary["scenario"] = self.label
+                return summary
         # the whole of stderr (a traceback's every line), one line per cell: lines joined by " | "
         err = [ln.strip() for ln in stderr.splitlines() if ln.strip()]
         if returncode == 1 and err and "(--wall-timeout)" in err[-1]:
@@ -197,8 +204,8 @@ def _local_cli(task: RunCli, points: list[Point], jobs: int) -> Iterable[dict[st
                     out.seek(0)
                     err.seek(0)
                     summary = task.summary(proc.returncode, out.read(), err.read())
-                    for k, v in summary.items():
-                        row.setdefault(k, cell(v))
+                    for k, v in cells(summary).items():
+                        row.setdefault(k, v)
                     row["error"] = ""
                 except RuntimeError as exc:
                     row["error"] = f"RuntimeError: {exc}".replace("\n", " ")
@@ -234,8 +241,8 @@ def run_point(task: Task, point: Point) -> dict[str, Any]:
     except Exception as exc:  # noqa: BLE001 - any failure of a run is that run's row
         summary = {}
         error = f"{type(exc).__name__}: {exc}".replace("\n", " ")
-    for k, v in summary.items():
-        row.setdefault(k, cell(v))
+    for k, v in cells(summary).items():
+        row.setdefault(k, v)
     row["error"] = error
     return row
 
@@ -382,11 +389,16 @@ def check_backend(backend: str) -> None:
 
 
 def run_sweep(points: Sequence[Point], task: Task, out: Path, *, jobs: int | None = None,
-              backend: str = "local", address: str | None = None, progress: TextIO | None = None
-              ) -> list[dict[str, Any]]:
+              backend: str = "local", address: str | None = None, progress: TextIO | None = None,
+              known: dict[str, str | None] | None = None) -> list[dict[str, Any]]:
     """Run every point of ``points`` not already in ``out`` (rows with an ``error`` are run again),
     rewriting ``out`` atomically after each finished run; returns the rows of ``points`` in their
-    order (those read from ``out`` and the new ones)."""
+    order (those read from ``out`` and the new ones).
+
+    ``known``: every column a table of this kind can have (name -> its kind, ``int``, ``float``,
+    ``bool``, ``string``, or None: what its name or values say): a Parquet ``out`` carries each,
+    empty where this sweep has none, so that a folder of sweeps over different parameters reads
+    back whole as one dataset (docs/sweeps.md); a CSV ``out`` only the columns of its rows."""
     table_format(out)
     check_backend(backend)
     names = [n for n, _ in points[0].params] if points else []
@@ -407,10 +419,16 @@ def run_sweep(points: Sequence[Point], task: Task, out: Path, *, jobs: int | Non
                        f"{len(todo)} to run\n")
     new: dict[int, dict[str, Any]] = {}
 
+    parquet = table_format(out) == "parquet"
+    kinds = {c: k for c, k in (known or {}).items() if k is not None}
+
     def flush() -> None:
         # columns from the rows in grid order: the same table whatever order the runs finish in
         rows = kept + [new[i] for i in sorted(new)]
-        write_table(out, rows, _ordered(_columns(rows)))
+        columns = _columns(rows)
+        if parquet and known:
+            columns += [c for c in known if c not in columns]
+        write_table(out, rows, _ordered(columns), kinds if parquet else None)
 
     try:
         if todo:
@@ -451,4 +469,4 @@ def _ordered(columns: list[str]) -> list[str]:
 
 
 __all__ = ["Point", "RunCli", "SweepError", "grid", "run_sweep", "run_point", "typed_value", "BACKENDS",
-           "TIMING_COLUMNS", "check_backend"]
+           "TIMING_COLUMNS", "check_backend", "flag"]

@@ -34,9 +34,16 @@ def is_set_name(name: str) -> bool:
     return name in registry()
 
 
+def flag(name: str) -> str:
+    """The ``run`` flag of a parameter column: its name with ``-`` for ``_`` (``pic_mhz`` ->
+    ``--pic-mhz``, as argparse names the option's ``dest``)."""
+    return "--" + name.replace("_", "-")
+
+
 def run_arg(name: str, value: Any) -> str:
-    """The ``run`` argument that sets ``--param`` ``name`` to ``value``."""
-    return f"--set={name}={value}" if is_set_name(name) else f"--{name}={value}"
+    """The ``run`` argument that sets ``--param`` ``name`` to ``value``: ``--set NAME=V`` for a
+    named parameter or a scenario's field, else the run option's own flag."""
+    return f"--set={name}={value}" if is_set_name(name) else f"{flag(name)}={value}"
 
 
 @dataclass(frozen=True)

@@ -13,10 +13,8 @@ from humanoid_twin.sweep.table import SweepError
 
 def _number(value: Any) -> float:
     v = typed_value(value)
-    if v == "True":
-        return 1.0
-    if v == "False":
-        return 0.0
+    if isinstance(v, str) and v.lower() in ("true", "false"):     # a CSV's true/false (an older True)
+        return 1.0 if v.lower() == "true" else 0.0
     if isinstance(v, bool | int | float):
         return float(v)
     return math.nan
