@@ -1,13 +1,16 @@
 """humanoid-twin: a physics-based digital twin of the University of Aveiro humanoid's legs and of
 its 2006 distributed control system (PC -> RS-232 -> Master -> CAN -> 8 Slaves -> servos)."""
 
-from humanoid_twin.core import install_source_first, pure_python_requested
+from humanoid_twin.core import install_source_first, pure_python_requested, source_if_stale
 
 __version__ = "0.1.0"
 
 if pure_python_requested():
     # the interpreted source even where the compiled core is installed (docs/architecture.md)
     install_source_first()
+else:
+    # an edited module not yet rebuilt: its source, never the old compiled code (a warning says so)
+    source_if_stale()
 
 
 def __getattr__(name: str) -> object:

@@ -617,17 +617,6 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     return sweep_command(args, build_parser())
 
 
-def _warn_stale_core() -> None:
-    """One line on stderr when, in a source tree, a compiled module is older than its source."""
-    from humanoid_twin.core import PURE_PYTHON_ENV, stale_modules
-
-    stale = stale_modules()
-    if stale:
-        sys.stderr.write(f"humanoid-twin: warning: the compiled core is older than its source "
-                         f"({', '.join(stale[:3])}{' ...' if len(stale) > 3 else ''}): rebuild with "
-                         f"'python scripts/build_core.py', or run the source with {PURE_PYTHON_ENV}=1\n")
-
-
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``humanoid-twin`` console script.
 
@@ -642,7 +631,6 @@ def main(argv: list[str] | None = None) -> int:
         if extra and args.command != "sweep":     # sweep gives run's options it does not know to every run
             parser.error(f"unrecognized arguments: {' '.join(extra)}")
         args.run_args = extra
-        _warn_stale_core()
         handler = {"run": cmd_run, "serve": cmd_serve, "view": cmd_view, "sweep": cmd_sweep}[args.command]
         return handler(args)
     except Exception as exc:
