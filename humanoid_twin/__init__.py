@@ -14,10 +14,20 @@ else:
 
 
 def __getattr__(name: str) -> object:
-    """``from humanoid_twin import Twin``: the in-process twin, imported on first use (the package's
-    import stays light for the CLI)."""
+    """Imported on first use (the package's import stays light for the CLI):
+    ``humanoid_twin.Twin``, the in-process twin; ``humanoid_twin.open``, a run of a scenario to
+    drive from Python (:func:`humanoid_twin.scenarios.open_run`), with ``humanoid_twin.RunOptions``
+    (README.md, "From Python")."""
     if name == "Twin":
         from humanoid_twin.twin import Twin
 
         return Twin
+    if name == "open":
+        from humanoid_twin.scenarios import open_run
+
+        return open_run
+    if name in ("RunOptions", "Session"):
+        from humanoid_twin import scenarios
+
+        return getattr(scenarios, name)
     raise AttributeError(f"module 'humanoid_twin' has no attribute {name!r}")

@@ -497,42 +497,229 @@ def expected_run_s(scenario: str | Scenario, duration: float | None = None, T: f
     return BOOT_TIMEOUT_S + _after_boot_s(spec.motion_s(spec.plan(T, motion, perna)), tilt)
 
 
+class Session:
+    """One run of a scenario, open in Python: built and booted, then driven step by step or to its
+    end (:func:`open_run`, ``humanoid_twin.open``; ``humanoid-twin run`` is :meth:`finish` at once).
+
+    ``Session(opts)`` builds the :class:`~humanoid_twin.rig.Rig` of ``opts`` (the twin, its laws,
+    its outputs, monitor and faults) and boots it: the host's port ``H`` is open and every Slave
+    calibrated (time advances here, ~2.65 simulated s). From there, in any order:
+    :meth:`step` (time passes, the firmware holds the posture or follows what the host sent),
+    :meth:`read` (the robot now), :meth:`drive` (the scenario's own program, e.g. the squat),
+    ``H`` (the host toolbox on the robot's serial port: ``readjoint(session.H, 1)``, ``applyjoint``
+    ... docs/host.md); :meth:`finish` runs the rest as ``humanoid-twin run`` would (the program if
+    not driven yet, ``host_controller``, settling until the run's end) and returns the summary;
+    :meth:`close` (or leaving the ``with`` block) closes the outputs and the twin.
+
+    Attributes: ``opts``, ``spec`` (the :class:`Scenario`), ``plan`` (its :class:`Plan`, with
+    ``control``'s type), ``rig``, ``boot_s``, ``end_s`` (when :meth:`finish` ends the run:
+    ``duration``, or the boot + the program or the tilt + settling)."""
+
+    def __init__(self, opts: RunOptions, on_progress: Callable[[float, float | None], None] | None = None,
+                 on_twin: Callable[[Any], None] | None = None) -> None:
+        self.opts = opts
+        self.spec, self.label = load_scenario(opts.scenario), scenario_name(opts.scenario)
+        self.plan = run_plan(self.spec, opts)
+        self.motion_s = self.spec.motion_s(self.plan)
+        self._host_step = (load_host_controller(opts.host_controller)
+                           if opts.host_controller is not None else None)
+        self.expected_s = expected_run_s(self.spec, opts.duration, opts.T, opts.motion, opts.perna, opts.tilt)
+        self.summary: dict[str, Any] | None = None
+        self.outputs: Any = None            # the files' temporary names (open_run), else None
+        self._driven = False
+        self._wall0 = time.perf_counter()
+        self.rig = _open_rig(opts, self.expected_s, on_twin, on_progress)
+        try:
+            self.rig.boot()                                   # time advances here: the boot
+            self.boot_s = self.rig.now_s
+            self.end_s = self.rig.end_s = _duration(opts, self.boot_s, self.motion_s)
+        except BaseException:
+            self.rig.close()
+            raise
+
+    @property
+    def H(self) -> Any:  # noqa: N802 - the toolbox's name for the host's port (seed 000 table 20)
+        """The host's end of the robot's RS-232 link (the toolbox's ``H``: docs/host.md)."""
+        return self.rig.H
+
+    @property
+    def twin(self) -> Twin:
+        """The twin (boards, buses, plant)."""
+        return self.rig.twin
+
+    @property
+    def now_s(self) -> float:
+        """The virtual time (simulated s)."""
+        return self.rig.now_s
+
+    def step(self, seconds: float = 0.02) -> dict[str, Any]:
+        """Let ``seconds`` of virtual time pass (the host waits on the twin's clock; the boards
+        run); returns :meth:`read`."""
+        if not seconds > 0:
+            raise ValueError(f"step({seconds!r}): give a positive number of simulated seconds")
+        self.rig.sleep(seconds)
+        return self.read()
+
+    def read(self) -> dict[str, Any]:
+        """The robot now, from the plant's ground truth and the Master's supervisor (reading takes
+        no time): ``t_s``, ``mode`` (the supervisor's), ``fell`` (at any sample so far),
+        ``fell_at_s``, ``trunk_tilt_deg``, ``cop_margin_mm`` (the CoP's distance inside the
+        support polygon), ``platform_tilt_deg``, ``joints_deg`` (every joint's true angle,
+        by MuJoCo joint name)."""
+        twin, mon = self.rig.twin, self.rig.monitor
+        truth = twin.plant.truth()
+        return {
+            "t_s": twin.now_s,
+            "mode": twin.master.supervisor.mode_name,
+            "fell": mon.fell or truth.fell,
+            "fell_at_s": mon.fell_at_s,
+            "trunk_tilt_deg": truth.trunk_tilt_deg,
+            "cop_margin_mm": truth.cop_margin_mm,
+            "platform_tilt_deg": twin.plant.tilt_deg,
+            "joints_deg": dict(truth.joint_angles_deg),
+        }
+
+    def drive(self) -> None:
+        """The scenario's own program (:meth:`Scenario.drive`: the planner's motions, or the
+        hold of its gains), once; time advances by its length. A failed request is the run's
+        ``host_error`` where the run tolerates it (faults, a stopped supervisor), as in ``run``."""
+        if self._driven:
+            raise ScenarioError(f"{self.label}: its program was driven already")
+        self._driven = True
+        if self.rig.host_error is None:
+            _drive(self.spec, self.rig, self.plan, self.label)
+
+    def finish(self) -> dict[str, Any]:
+        """The rest of the run as ``humanoid-twin run`` has it: the scenario's program (unless
+        :meth:`drive` ran it), the ``host_controller``, the robot settling until :attr:`end_s`
+        (``duration`` cuts the program where it falls inside it: ``completed`` false). Returns the
+        summary (docs/scenarios.md), also kept in :attr:`summary`."""
+        rig, duration, spec = self.rig, self.end_s, self.spec
+        completed, host_calls = True, None
+        if rig.now_s < duration < self.boot_s + self.motion_s:
+            _cut_at(rig, duration)                   # --duration ends inside the program
+        try:
+            if not self._driven and (not spec.moves or duration > rig.now_s):
+                self.drive()                         # time advances here: the scenario's program
+            if self._host_step is not None and rig.host_error is None:
+                host_calls = _host_controller(rig, self._host_step, duration, self.opts.host_period_ms)
+            rig.sleep_until(duration)                # time advances here: the robot settles
+        except _DurationReachedError:
+            completed = False                        # --duration fell inside the program: cut there
+        self.summary = build_summary(rig, self.label, self.plan, completed=completed,
+                                     wall_s=time.perf_counter() - self._wall0, host_calls=host_calls)
+        return self.summary
+
+    def close(self, failed: bool = False) -> None:
+        """Close the outputs and the twin (:meth:`Rig.close`); a recording's summary notes are
+        added to :attr:`summary` then (its compaction happens at the close). Files written under
+        temporary names (:func:`open_run`) take their final names now, or are removed when
+        ``failed`` (an exception left the ``with`` block) or the close itself failed: an
+        existing file is never replaced by a failed run. Closing twice does nothing."""
+        if getattr(self, "_closed", False):
+            return
+        self._closed = True
+        outputs = self.outputs
+        try:
+            self.rig.close()
+        except BaseException:
+            if outputs is not None:
+                outputs.discard()
+            raise
+        if outputs is not None and failed:
+            outputs.discard()
+        elif outputs is not None:
+            finals = dict(outputs.final)
+            outputs.commit()
+            if self.summary is not None:       # where the files are, as ``run`` reports them
+                self.summary.update({"recording" if k == "out" else k: str(p) for k, p in finals.items()})
+        if self.summary is not None:
+            note_recording(self.summary, self.rig)
+
+    def __enter__(self) -> Session:
+        return self
+
+    def __exit__(self, exc_type: type[BaseException] | None, *exc: object) -> None:
+        # Ctrl-C keeps what was recorded, closed and readable (as the CLI does)
+        self.close(failed=exc_type is not None and not issubclass(exc_type, KeyboardInterrupt))
+
+
+_OUTPUT_FIELDS = ("out", "can_log", "serial_log")
+
+
+def open_run(opts: RunOptions | str | Scenario = "stand", /, **fields: Any) -> Session:
+    """``humanoid_twin.open``: a run of a scenario, built and booted, to drive from Python or a
+    notebook (:class:`Session`: ``step``, ``read``, ``drive``, ``finish``, ``close``).
+
+    ``opts``: :class:`RunOptions` (the options of ``humanoid-twin run``, by the same names), or a
+    scenario (a name, ``FILE.py:NAME``, a :class:`Scenario`) with the options as keywords:
+    ``open_run("flexao", motion=30, out="flexao.rrd")``. As ``run --out`` does, the recording
+    (``out``, a ``.rrd``), the CAN log (``can_log``) and the serial log (``serial_log``) are
+    written under temporary names beside their own and renamed when the session closes; a session
+    that ended with an error leaves no file and replaces none. Nothing is recorded unless asked
+    (``humanoid-twin run`` records ``SCENARIO.rrd`` by default; from Python, name the file).
+
+    :class:`ScenarioInputError` (before anything is written) for a recording not named ``.rrd``,
+    a CAN log format python-can cannot write, or a place that cannot be written."""
+    import dataclasses
+
+    from humanoid_twin.outputs import Outputs
+
+    if not isinstance(opts, RunOptions):
+        opts = RunOptions(scenario=opts, **fields)
+    elif fields:
+        opts = dataclasses.replace(opts, **fields)
+    finals = {k: Path(getattr(opts, k)) for k in _OUTPUT_FIELDS if getattr(opts, k) is not None}
+    if "out" in finals and finals["out"].suffix != ".rrd":
+        raise ScenarioInputError(f"out={str(finals['out'])!r}: a rerun recording must end in .rrd")
+    if "can_log" in finals:
+        from humanoid_twin.recording.can_log import CanLogError, check_log_path
+
+        try:
+            check_log_path(finals["can_log"])
+        except CanLogError as exc:
+            raise ScenarioInputError(f"can_log: {exc}") from None
+    load_scenario(opts.scenario)            # a reference that names nothing: before any file
+    outputs = Outputs()
+    try:
+        temp = {k: outputs.add(k, path) for k, path in finals.items()}
+    except OSError as exc:
+        outputs.discard()
+        raise ScenarioInputError(f"cannot write there: {exc}") from None
+    if temp:
+        opts = dataclasses.replace(opts, **temp, can_log_name=finals["can_log"].name if "can_log" in finals
+                                   else opts.can_log_name)
+    try:
+        session = Session(opts)
+    except BaseException:
+        outputs.discard()
+        raise
+    session.outputs = outputs
+    return session
+
+
 def run(opts: RunOptions, on_progress: Callable[[float, float | None], None] | None = None,
         on_twin: Callable[[Any], None] | None = None) -> dict[str, Any]:
-    """Run one scenario headless and return its summary (docs/scenarios.md).
+    """Run one scenario headless and return its summary (docs/scenarios.md): a :class:`Session`
+    opened and finished at once. The outputs are written to the names in ``opts`` as they go
+    (the CLI gives temporary names; :func:`open_run` does the same from Python).
 
     ``on_progress(t_s, end_s)`` is called every 0.1 s of virtual time: ``end_s`` is None during
     the boot (its length is not known in advance), then the run's end time. ``on_twin(twin)`` is
     called once the twin is built, before anything is written (``run --viewer`` attaches there)."""
-    spec, label = load_scenario(opts.scenario), scenario_name(opts.scenario)
-    the_plan = run_plan(spec, opts)
-    motion_s = spec.motion_s(the_plan)
-    host_step = load_host_controller(opts.host_controller) if opts.host_controller is not None else None
-    expected_s = expected_run_s(spec, opts.duration, opts.T, opts.motion, opts.perna, opts.tilt)
-    wall0 = time.perf_counter()
+    load_scenario(opts.scenario)              # a reference that names nothing: before the timer
     disarm = _arm_wall_timeout(opts.wall_timeout)
-    rig: Rig | None = None
+    session: Session | None = None
     try:
-        with _open_rig(opts, expected_s, on_twin, on_progress) as rig:
-            rig.boot()                                   # time advances here: the boot
-            boot_s = rig.now_s
-            duration = rig.end_s = _duration(opts, boot_s, motion_s)
-            completed, host_calls = True, None
-            if duration < boot_s + motion_s:
-                _cut_at(rig, duration)                   # --duration ends inside the program
-            try:
-                if rig.host_error is None and (not spec.moves or duration > rig.now_s):
-                    _drive(spec, rig, the_plan, label)   # time advances here: the scenario's program
-                if host_step is not None and rig.host_error is None:
-                    host_calls = _host_controller(rig, host_step, duration, opts.host_period_ms)
-                rig.sleep_until(duration)                # time advances here: the robot settles
-            except _DurationReachedError:
-                completed = False                        # --duration fell inside the program: cut there
-            summary = build_summary(rig, label, the_plan, completed=completed,
-                                    wall_s=time.perf_counter() - wall0, host_calls=host_calls)
-        note_recording(summary, rig)
-        return summary
+        # made first, then built: a --wall-timeout during the boot still finds the rig's time
+        session = Session.__new__(Session)
+        session.__init__(opts, on_progress, on_twin)
+        with session:
+            session.finish()
+        assert session.summary is not None
+        return session.summary
     except _WallTimeoutError:
+        rig = getattr(session, "rig", None)
         now = rig.now_s if rig is not None else 0.0
         raise ScenarioError(f"the run took more than {opts.wall_timeout:g} wall seconds (--wall-timeout): "
                             f"stopped at t={now:.3f} s simulated") from None
@@ -607,5 +794,5 @@ __all__ = ["RunOptions", "outcome", "SLIP_HELD_MM", "SUMMARY_KEYS", "summary_key
            "Plan", "Scenario", "REGISTRY", "scenario", "get_scenario", "load_scenario", "scenario_name",
            "ENTRY_POINT_GROUP", "boot", "hold", "BootError", "ScenarioError", "ScenarioInputError",
            "ScenarioLoadError", "SCENARIOS", "CONTROL_CHOICES", "plan", "run", "run_plan", "tilt_profile",
-           "expected_run_s",
+           "expected_run_s", "Session", "open_run",
            "Rig", "RigOptions", "BOOT_TIMEOUT_S", "TILT_RATE_DEG_S", "SETTLE_S", "BOOT_MIN_S"]

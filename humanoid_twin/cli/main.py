@@ -46,6 +46,7 @@ from humanoid_twin.cli.options import (
     scenario_arg,
 )
 from humanoid_twin.cli.options import usage_error as _usage_error
+from humanoid_twin.outputs import NAME_MAX, Outputs
 
 EXIT_SUPERVISOR = 3     # the run ended with the supervisor in safe or estop (docs/supervisor.md)
 
@@ -198,7 +199,6 @@ MAX_DURATION_S = 86_400.0   # one simulated day: --duration beyond this is refus
 MIN_FREE_BYTES = 8 * 2**20  # a run's outputs need at least this much free disk besides their own size
 EXIT_INTERRUPTED = 130      # SIGINT (Ctrl-C)
 EXIT_TERMINATED = 143       # SIGTERM (timeout, CI runners, docker stop)
-NAME_MAX = 255              # bytes in a file name (Linux, macOS)
 
 # What a run writes, per simulated second, measured on stand and flexao (docs/scenarios.md,
 # "Disk space"): the recording streams 186-215 kB/s (220 000 bound); the CAN wire carries 3 800
@@ -223,21 +223,6 @@ def _check_writable(path: Path, what: str) -> None:
         raise _usage_error(f"{what}: the file name is longer than {NAME_MAX} bytes")
 
 
-def temp_name(path: Path) -> Path:
-    """The temporary name a run writes ``path`` under (beside it, renamed at the end): the
-    suffixes kept at the end (the format follows them), and never longer than a file name may be
-    (a valid 252-character name still gets a valid temporary one)."""
-    name = f".partial-{os.getpid()}-{path.name}"
-    if len(os.fsencode(name)) <= NAME_MAX:
-        return path.with_name(name)
-    import hashlib
-
-    suffixes = path.suffixes[-2:] if path.suffix.lower() == ".gz" else path.suffixes[-1:]
-    keep = "".join(suffixes)[-40:]
-    digest = hashlib.sha256(os.fsencode(path.name)).hexdigest()[:16]
-    return path.with_name(f".partial-{os.getpid()}-{digest}{keep}")
-
-
 def output_bytes(kind: str, path: Path, expected_s: float) -> int:
     """What a run of ``expected_s`` simulated seconds writes to ``path`` at most (bytes): a
     recording (``kind`` "out"), twice over when it is compacted at the end (the compaction writes
@@ -258,15 +243,12 @@ def output_bytes(kind: str, path: Path, expected_s: float) -> int:
     return round(expected_s * CAN_FRAMES_PER_S * per_frame)
 
 
-class _Outputs:
+class _Outputs(Outputs):
     """The run's files are written under temporary names next to their final ones and renamed at
-    the end: a failed run never replaces an existing file. Each temporary file is created up
-    front (an unwritable place is found before the run: exit 2), once the free space of every
-    disk has been checked against what the run will write there (:func:`output_bytes`)."""
-
-    def __init__(self) -> None:
-        self.final: dict[str, Path] = {}
-        self.temp: dict[str, Path] = {}
+    the end (humanoid_twin/outputs.py): a failed run never replaces an existing file. Each temporary
+    file is created up front (an unwritable place is found before the run: exit 2), once the free
+    space of every disk has been checked against what the run will write there
+    (:func:`output_bytes`)."""
 
     def check_space(self, wanted: dict[str, tuple[Path, str]], expected_s: float) -> None:
         """Every disk has room for what the run writes on it, plus :data:`MIN_FREE_BYTES` (an
@@ -300,44 +282,12 @@ class _Outputs:
         files["can_log_name"] = None if args.can_log is None else args.can_log.name
         return files
 
-    def add(self, key: str, path: Path, what: str) -> Path:
-        path = path.expanduser()
-        tmp = temp_name(path)
-        from humanoid_twin import signals
-
-        with signals.deferred():     # created and registered together: no stray file after a signal
-            try:
-                os.close(os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o644))
-            except OSError as exc:
-                self.discard()
-                raise _usage_error(f"{what} {path}: cannot write there: {exc.strerror or exc}") from None
-            self.final[key], self.temp[key] = path, tmp
-        return tmp
-
-    def commit(self) -> None:
-        from humanoid_twin import signals
-
-        with signals.deferred():     # every rename done before a signal is delivered
-            for key, tmp in list(self.temp.items()):
-                if tmp.exists():
-                    os.replace(tmp, self.final[key])
-                del self.temp[key]
-
-    def discard(self) -> None:
-        from humanoid_twin import signals
-
-        with signals.deferred():
-            for tmp in self.temp.values():
-                with contextlib.suppress(OSError):
-                    tmp.unlink()
-            self.temp.clear()
-
-    def final_names(self, text: str) -> str:
-        """``text`` with each temporary name replaced by its final one (error messages)."""
-        for key, tmp in self.temp.items():
-            text = text.replace(str(tmp), str(self.final[key]))
-        return text
-
+    def add(self, key: str, path: Path, what: str) -> Path:  # type: ignore[override]
+        try:
+            return super().add(key, path)
+        except OSError as exc:
+            self.discard()
+            raise _usage_error(f"{what} {path}: cannot write there: {exc.strerror or exc}") from None
 
 def check_run_inputs(args: argparse.Namespace, load: bool = True) -> dict[str, Any]:
     """Every value of ``run`` checked before anything runs or is written (one line, exit 2): its
