@@ -18,6 +18,7 @@ from rerun.blueprint.encodings import TextLogColumn, TextLogColumnKind
 from humanoid_twin.hardware import FOOT_OF_SCU, IMU_SCU, LEG_SCUS, N_SERVOS, SERVO_JOINTS
 from humanoid_twin.protocol.wire import SCUS
 from humanoid_twin.recording.paths import (
+    BODIES,
     CAN,
     FEET,
     KEYS,
@@ -35,9 +36,12 @@ __all__ = ["default_blueprint", "log_keys", "LEG_SCUS"]
 
 
 # The 3D eye: framed on the robot (about 0.5 m tall, standing at the origin, facing +x), seen from
-# its front right, a little above the hips, instead of rerun's default framing of the whole floor.
+# its front right, a little above the hips, instead of rerun's default framing of the whole floor;
+# it follows the trunk (EYE_TRACKS), so a robot that falls or walks off stays in the picture (a
+# fixed eye lost a fallen robot at the edge of the view).
 EYE_POSITION = (0.70, -0.60, 0.45)
 EYE_TARGET = (0.0, 0.0, 0.22)
+EYE_TRACKS = f"{BODIES}/trunk"
 # Legends: in the top-left corner of a plot with several series; none on a plot with one (its
 # title names it) nor on the joint plots, whose five series are named once, in a key line above
 # their grid (five-entry legends covered the first seconds of every joint plot).
@@ -86,17 +90,19 @@ def log_keys(rec: Any) -> None:
 
 
 def default_blueprint(
-    scus: Sequence[int] = SCUS, master_entities: Sequence[str] = ()
+    scus: Sequence[int] = SCUS, master_entities: Sequence[str] = (), active_tab: str | None = None
 ) -> rrb.Blueprint:
     """The blueprint sent with every recording (see docs/recording.md, "Blueprint");
-    ``master_entities``: the ``master/...`` counter entities, one plot each."""
+    ``master_entities``: the ``master/...`` counter entities, one plot each; ``active_tab``: the
+    name of the tab shown first (default the first, the right leg's joints)."""
     legs = [s for s in LEG_SCUS if s in scus]
     upper = [s for s in scus if s not in LEG_SCUS]
     feet = [s for s in scus if s in FOOT_OF_SCU]
 
     robot_3d = rrb.Spatial3DView(
         name="Robot", origin=WORLD,
-        eye_controls=rrb.EyeControls3D(position=EYE_POSITION, look_target=EYE_TARGET, eye_up=(0.0, 0.0, 1.0)),
+        eye_controls=rrb.EyeControls3D(position=EYE_POSITION, look_target=EYE_TARGET, eye_up=(0.0, 0.0, 1.0),
+                                       tracking_entity=EYE_TRACKS),
     )
     foot_views = [
         rrb.Spatial2DView(name=f"{foot_side(s).capitalize()} foot CoP (mm)", origin=f"{FEET}/{foot_side(s)}")
@@ -153,7 +159,8 @@ def default_blueprint(
         _plot(name="fell (0 no, 1 yes)", origin=f"{ROBOT}/fell", legend=False, y_range=_FLAG_RANGE),
         _plot(name="platform tilt (deg, toes up +)", origin=f"{ROBOT}/platform_tilt_deg", legend=False),
         _plot(name="total normal force (N)", origin=f"{ROBOT}/total_force_n", legend=False),
-        grid_columns=2,
+        # 3 x 2: plots half as tall again as in 2 x 3, where a 0-2 deg tilt got three tick labels
+        grid_columns=3,
         name="Balance",
     )
     counters = rrb.Grid(
@@ -196,7 +203,8 @@ def default_blueprint(
     # the events beside the plot: a log's lines are short, a full-width table left most of it empty
     supervisor = rrb.Horizontal(
         _plot("Supervisor mode and faults latched", f"{SUPERVISOR}/mode", y_range=_MODE_RANGE),
-        rrb.TextLogView(name="Supervisor events", origin=f"{SUPERVISOR}/events", columns=_LOG_COLUMNS),
+        rrb.TextLogView(name="Events: modes, faults, injections, the fall", origin=f"{SUPERVISOR}/events",
+                        columns=_LOG_COLUMNS),
         column_shares=[3, 2],
         name="Supervisor",
     )
@@ -214,7 +222,7 @@ def default_blueprint(
     if upper:
         tabs.append(_joint_grid(upper, "Upper body"))
     return rrb.Blueprint(
-        rrb.Horizontal(left, rrb.Tabs(*tabs), column_shares=[2, 3]),
+        rrb.Horizontal(left, rrb.Tabs(*tabs, active_tab=active_tab), column_shares=[2, 3]),
         rrb.TimePanel(timeline="sim_time", state="collapsed"),
         rrb.BlueprintPanel(state="collapsed"),
         rrb.SelectionPanel(state="collapsed"),
