@@ -18,7 +18,6 @@ from rerun.blueprint.encodings import TextLogColumn, TextLogColumnKind
 from humanoid_twin.hardware import FOOT_OF_SCU, IMU_SCU, LEG_SCUS, N_SERVOS, SERVO_JOINTS
 from humanoid_twin.protocol.wire import SCUS
 from humanoid_twin.recording.paths import (
-    BODIES,
     CAN,
     FEET,
     KEYS,
@@ -36,12 +35,13 @@ __all__ = ["default_blueprint", "log_keys", "LEG_SCUS"]
 
 
 # The 3D eye: framed on the robot (about 0.5 m tall, standing at the origin, facing +x), seen from
-# its front right, a little above the hips, instead of rerun's default framing of the whole floor;
-# it follows the trunk (EYE_TRACKS), so a robot that falls or walks off stays in the picture (a
-# fixed eye lost a fallen robot at the edge of the view).
-EYE_POSITION = (0.70, -0.60, 0.45)
-EYE_TARGET = (0.0, 0.0, 0.22)
-EYE_TRACKS = f"{BODIES}/trunk"
+# its front right and above, instead of rerun's default framing of the whole floor; far enough
+# that a robot that falls, whichever way (its 0.5 m along the floor around its feet), stays whole
+# in the picture: the eye at (0.70, -0.60, 0.45) looking at the hips lost a fallen robot at the
+# edge of the view, and rerun's tracking of the trunk (EyeControls3D.tracking_entity) kept the
+# eye at its height while the trunk fell, looking at the robot's side from the floor.
+EYE_POSITION = (1.00, -0.85, 0.75)
+EYE_TARGET = (0.05, 0.0, 0.12)
 # Legends: in the top-left corner of a plot with several series; none on a plot with one (its
 # title names it) nor on the joint plots, whose five series are named once, in a key line above
 # their grid (five-entry legends covered the first seconds of every joint plot).
@@ -101,8 +101,7 @@ def default_blueprint(
 
     robot_3d = rrb.Spatial3DView(
         name="Robot", origin=WORLD,
-        eye_controls=rrb.EyeControls3D(position=EYE_POSITION, look_target=EYE_TARGET, eye_up=(0.0, 0.0, 1.0),
-                                       tracking_entity=EYE_TRACKS),
+        eye_controls=rrb.EyeControls3D(position=EYE_POSITION, look_target=EYE_TARGET, eye_up=(0.0, 0.0, 1.0)),
     )
     foot_views = [
         rrb.Spatial2DView(name=f"{foot_side(s).capitalize()} foot CoP (mm)", origin=f"{FEET}/{foot_side(s)}")
@@ -222,9 +221,18 @@ def default_blueprint(
     if upper:
         tabs.append(_joint_grid(upper, "Upper body"))
     return rrb.Blueprint(
-        rrb.Horizontal(left, rrb.Tabs(*tabs, active_tab=active_tab), column_shares=[2, 3]),
+        rrb.Horizontal(left, rrb.Tabs(*tabs, active_tab=_tab_index(tabs, active_tab)), column_shares=[2, 3]),
         rrb.TimePanel(timeline="sim_time", state="collapsed"),
         rrb.BlueprintPanel(state="collapsed"),
         rrb.SelectionPanel(state="collapsed"),
     )
 
+
+def _tab_index(tabs: Sequence[rrb.Container], name: str | None) -> int | None:
+    """The index of the tab called ``name`` (rerun names only views, not containers, as tabs)."""
+    if name is None:
+        return None
+    names = [str(t.name) for t in tabs]
+    if name not in names:
+        raise ValueError(f"no tab {name!r} (the tabs: {', '.join(names)})")
+    return names.index(name)
