@@ -204,7 +204,7 @@ def default_blueprint(
         _plot("Supervisor mode and faults latched", f"{SUPERVISOR}/mode", y_range=_MODE_RANGE),
         rrb.TextLogView(name="Events: modes, faults, injections, the fall", origin=f"{SUPERVISOR}/events",
                         columns=_LOG_COLUMNS),
-        column_shares=[3, 2],
+        column_shares=[1, 1],       # [3, 2] cut the longer lines (a fall's) at the window's edge
         name="Supervisor",
     )
     tabs: list[rrb.Container] = []

@@ -456,8 +456,8 @@ class Recorder:
     def _log_fell(self, t_us: int, truth: Any) -> None:
         """The robot's fall as an event (once a recording): when, and how it lies."""
         self._fell_logged = True
-        self.log_event(t_us, f"fell: trunk tilted {truth.trunk_tilt_deg:.0f} deg, its origin "
-                       f"{truth.trunk_height_m * 1000:.0f} mm high", "ERROR")
+        tilt, height_mm = truth.trunk_tilt_deg, truth.trunk_height_m * 1000
+        self.log_event(t_us, f"fell: trunk {tilt:.0f} deg, {height_mm:.0f} mm high", "ERROR")
 
     def _on_supervisor(self, kind: str, t_us: int, value: Any) -> None:
         """The Master supervisor's listener: every mode change and fault as an event."""
