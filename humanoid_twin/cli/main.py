@@ -46,7 +46,7 @@ from humanoid_twin.cli.options import (
     scenario_arg,
 )
 from humanoid_twin.cli.options import usage_error as _usage_error
-from humanoid_twin.outputs import NAME_MAX, Outputs
+from humanoid_twin.outputs import NAME_MAX, Outputs, temp_name  # noqa: F401 - temp_name: its home was here
 
 EXIT_SUPERVISOR = 3     # the run ended with the supervisor in safe or estop (docs/supervisor.md)
 
