@@ -261,7 +261,7 @@ def shoot_web(url: str, out: Path, size: str, profile: Path, settle_s: float = 9
         cdp.close()
 
 
-def web_shot(rrd: Path, out: Path, size: str, tmp: Path, settle_s: float = 120.0) -> None:
+def web_shot(rrd: Path, out: Path, size: str, tmp: Path, settle_s: float = 300.0) -> None:
     """``humanoid-twin view --web`` on ``rrd``, photographed by headless Chromium."""
     from humanoid_twin.recording.viewer import free_loopback_port
 
@@ -275,7 +275,8 @@ def web_shot(rrd: Path, out: Path, size: str, tmp: Path, settle_s: float = 120.0
         time.sleep(2)
         w, h = size.split("x")
         out.parent.mkdir(parents=True, exist_ok=True)
-        if 0 <= shoot_web(url, out, f"{w},{h}", tmp / "chromium-profile", settle_s) < DRAWN_MIN_COLOURS:
+        if 0 <= shoot_web(url, out, f"{w},{h}", tmp / "chromium-profile", settle_s, stable=True) \
+                < DRAWN_MIN_COLOURS:
             raise RuntimeError(f"the web viewer drew nothing within {settle_s:g} s: {out}")
     finally:
         stop(proc)

@@ -85,17 +85,3 @@ def test_every_plot_of_one_quantity_has_a_colour_of_its_own_and_no_grey() -> Non
         assert max(r, g, b) - min(r, g, b) >= 80, f"{path}: {(r, g, b)} is a grey"
     balance = [p for p in single if p.startswith(ROBOT) and not p.endswith("/fell")]
     assert len({single[p] for p in balance}) == len(balance), "two Balance plots share a colour"
-
-
-def test_balance_plots_are_tall() -> None:
-    bp = blueprint.default_blueprint()
-    views = []
-
-    def walk(node: object) -> None:
-        views.append(node)
-        for child in getattr(node, "contents", None) or []:
-            walk(child)
-
-    walk(bp.root_container)
-    balance = next(v for v in views if getattr(v, "name", None) == "Balance")
-    assert balance.grid_columns == 3

@@ -158,8 +158,7 @@ def default_blueprint(
         _plot(name="fell (0 no, 1 yes)", origin=f"{ROBOT}/fell", legend=False, y_range=_FLAG_RANGE),
         _plot(name="platform tilt (deg, toes up +)", origin=f"{ROBOT}/platform_tilt_deg", legend=False),
         _plot(name="total normal force (N)", origin=f"{ROBOT}/total_force_n", legend=False),
-        # 3 x 2: plots half as tall again as in 2 x 3, where a 0-2 deg tilt got three tick labels
-        grid_columns=3,
+        grid_columns=2,
         name="Balance",
     )
     counters = rrb.Grid(
