@@ -291,12 +291,17 @@ ALL_INLINE = [c for doc in DOCS for c in inline_commands(doc)]
 def _sample_argv(text: str) -> tuple[list[str], bool]:
     """The words of an inline command with each placeholder given a sample value (module
     docstring); and whether ``...`` elided something the command may need."""
-    words = text.replace("[", " ").replace("]", " ").split()[1:]
+    bare = text.replace("[", " ").replace("]", " ")
+    try:
+        words = shlex.split(bare)[1:]
+    except ValueError:                          # an unbalanced quote: the words as written
+        words = bare.split()[1:]
     argv, elided = [], False
     for k, w in enumerate(words):
         w = w.split("|")[0] if "|" in w and w != "|" else w
-        if w == "|":
-            break                               # alternatives of a whole tail: the first one
+        if w in ("|", ">", ">>", "2>", "2>&1", "&&", ";", "&"):
+            break                               # the shell's from here (a pipe, a redirection), or
+                                                # alternatives of a whole tail: the first one
         if w.endswith("..."):
             elided = True
             w = w[:-3]
@@ -371,7 +376,9 @@ def test_the_inline_check_finds_what_fails() -> None:
     good = ("humanoid-twin run SCENARIO --fault SPEC [--fault SPEC ...]", "humanoid-twin serve --law ...",
             "humanoid-twin run ... --out FILE.rrd --can-log FILE.asc", "humanoid-twin serve: wrote x.serial",
             "humanoid-twin --version", "humanoid-twin run/serve/view/sweep",
-            "humanoid-twin sweep stand --param pic-mhz=2,5 --out FILE.csv")
+            "humanoid-twin sweep stand --param pic-mhz=2,5 --out FILE.csv",
+            "humanoid-twin run stand --json | jq .fell", "humanoid-twin run stand --no-record > out.txt",
+            "humanoid-twin sweep stand --param 'tilt=0,10' --out t.csv")
     for text in good:
         where.text = text
         assert check_inline(where) is None, (text, check_inline(where))
