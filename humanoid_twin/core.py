@@ -5,6 +5,14 @@ with its augmenting ``.pxd`` declarations) or the interpreted source (docs/archi
 ``HUMANOID_TWIN_PURE_PYTHON=1`` makes every ``humanoid_twin`` module load from its ``.py`` even
 where a compiled module sits beside it (for debugging: breakpoints and tracebacks in the firmware
 work there). The switch is read once, when the package is first imported.
+
+In a source tree (an editable install) the package's import also compares each compiled module
+with its ``.py`` and ``.pxd`` (:func:`stale_modules`, file times only: a few milliseconds): when
+one is older, an edit has not been rebuilt and the compiled module would run the old code. The
+whole package then loads from its source, as with ``HUMANOID_TWIN_PURE_PYTHON=1`` (a compiled
+module cannot be swapped for its source alone: the others are built against its C types), and a
+:class:`StaleCoreWarning` says so, once, in the CLI, a script or a notebook alike
+(:func:`source_if_stale`).
 """
 
 from __future__ import annotations
@@ -13,6 +21,7 @@ import importlib.machinery
 import importlib.util
 import os
 import sys
+import warnings
 from collections.abc import Sequence
 from pathlib import Path
 from types import ModuleType
@@ -68,8 +77,9 @@ def core_kind() -> str:
 def stale_modules(pkg: Path | None = None) -> list[str]:
     """In a source tree (an editable install), the compiled modules older than their ``.py`` or
     ``.pxd``: an edit not yet rebuilt (``python scripts/build_core.py``), which the compiled module
-    would silently ignore. Empty for an installed wheel and for the interpreted source. ``pkg``:
-    the package's folder (default: this package's)."""
+    would silently ignore (the package's import runs the source then: :func:`source_if_stale`).
+    Empty for an installed wheel and for the interpreted source. ``pkg``: the package's folder
+    (default: this package's)."""
     pkg = Path(__file__).resolve().parent if pkg is None else pkg
     if pure_python_requested() or not (pkg.parent / "setup.py").is_file():
         return []
@@ -82,6 +92,45 @@ def stale_modules(pkg: Path | None = None) -> list[str]:
         newest_source = max(source.stat().st_mtime, pxd.stat().st_mtime)
         if newest_source > max(p.stat().st_mtime for p in built):
             stale.append(".".join(source.relative_to(pkg.parent).with_suffix("").parts))
+    return stale
+
+
+class StaleCoreWarning(UserWarning):
+    """A compiled module is older than its source: the package runs from its source instead."""
+
+
+def stale_message(stale: Sequence[str]) -> str:
+    """The warning's text: which compiled modules are older than their source, what runs instead,
+    and how to rebuild."""
+    names = ", ".join(stale[:3]) + (f" and {len(stale) - 3} more" if len(stale) > 3 else "")
+    return (f"humanoid-twin: the compiled core is older than its source ({names}): running the "
+            f"source instead (slower); rebuild it with 'python scripts/build_core.py'")
+
+
+def _caller_stacklevel() -> int:
+    """The ``stacklevel`` of the first frame outside the import machinery and this package: the
+    user's ``import`` line (a script's, a notebook cell's), which the warning then names."""
+    frame, level = sys._getframe(1), 1
+    pkg_dir = str(Path(__file__).resolve().parent)
+    while frame is not None:
+        where = frame.f_code.co_filename
+        if "importlib" in where and "_bootstrap" in where:
+            frame = frame.f_back        # warnings.warn skips these frames itself: not counted
+            continue
+        if not where.startswith(pkg_dir):
+            return level
+        frame, level = frame.f_back, level + 1
+    return 1
+
+
+def source_if_stale() -> list[str]:
+    """At the package's import: when compiled modules are older than their source
+    (:func:`stale_modules`), load every module from its source (:func:`install_source_first`)
+    and warn (:class:`StaleCoreWarning`); the stale modules' names (empty: nothing done)."""
+    stale = stale_modules()
+    if stale:
+        install_source_first()
+        warnings.warn(stale_message(stale), StaleCoreWarning, stacklevel=_caller_stacklevel())
     return stale
 
 

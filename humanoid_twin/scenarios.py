@@ -755,87 +755,302 @@ def scenario_plan(spec: Scenario, label: str, T: float | None, motion: float | N
     return _with_control(spec, the_plan, control)
 
 
+class Session:
+    """One run of a scenario, open in Python: built and booted, then driven step by step or to its
+    end (:func:`open_run`, ``humanoid_twin.open``; ``humanoid-twin run`` is :meth:`finish` at once).
+
+    ``Session(opts)`` loads and plans the scenario as ``run`` does (``scenario_fields``, checked
+    ``motion_s``), builds the :class:`~humanoid_twin.rig.Rig` of ``opts`` (the twin, its laws,
+    its outputs, monitor and faults) and boots it: the host's port ``H`` is open and every Slave
+    calibrated (time advances here, ~2.65 simulated s; a ``duration`` that ends inside the boot
+    cuts it there). From there, in any order: :meth:`step` (time passes, the firmware holds the
+    posture or follows what the host sent), :meth:`read` (the robot now), :meth:`drive` (the
+    scenario's own program, e.g. the squat, cut at :attr:`end_s`), ``H`` (the host toolbox on the
+    robot's serial port: ``readjoint(session.H, 1)``, ``applyjoint`` ... docs/host.md);
+    :meth:`finish` runs the rest as ``humanoid-twin run`` would (the program if not driven yet,
+    ``host_controller``, settling until the run's end) and returns the summary; :meth:`close` (or
+    leaving the ``with`` block) closes the outputs and the twin. A simulation that diverges ends
+    the run (``outcome: diverged``; :meth:`step` raises :class:`ScenarioError`).
+
+    Attributes: ``opts``, ``spec`` (the :class:`Scenario`), ``plan`` (its :class:`Plan`, with
+    ``control``'s type), ``rig``, ``boot_s`` (None: the boot was cut), ``end_s`` (when
+    :meth:`finish` ends the run: ``duration``, or the boot + the program or the tilt + settling)."""
+
+    def __init__(self, opts: RunOptions, on_progress: Callable[[float, float | None], None] | None = None,
+                 on_twin: Callable[[Any], None] | None = None,
+                 on_boot: Callable[[float, str | None], None] | None = None) -> None:
+        self.opts = opts
+        self.rig: Rig | None = None   # type: ignore[assignment]  (set below; a --wall-timeout may land first)
+        self.spec = with_fields(load_scenario(opts.scenario), opts.scenario_fields)   # --set scenario.FIELD=V
+        self.label = scenario_name(opts.scenario)
+        self.plan = scenario_plan(self.spec, self.label, opts.T, opts.motion, opts.perna, opts.control)
+        self.motion_s = scenario_motion_s(self.spec, self.plan, self.label)
+        self._host_step = (load_host_controller(opts.host_controller)
+                           if opts.host_controller is not None else None)
+        self.expected_s = (opts.duration if opts.duration is not None
+                           else BOOT_TIMEOUT_S + _after_boot_s(self.motion_s, opts.tilt))
+        self.summary: dict[str, Any] | None = None
+        self.outputs: Any = None            # the files' temporary names (open_run), else None
+        self._driven = False
+        self._completed = True              # false once the run's end cut the boot or the program
+        self._stopped = False               # the run's end or a divergence ended it: nothing more runs
+        self._wall0 = time.perf_counter()
+        self.rig = rig = _open_rig(opts, self.expected_s, on_twin, on_progress)
+        try:
+            self._end = _Bound(rig.twin, _DurationReachedError)
+            self._diverged = _Bound(rig.twin, _DivergedError)
+            rig.monitor.on_diverged = lambda: self._diverged.arm(rig.now_s)
+            if opts.duration is not None:
+                self._end.arm(opts.duration)     # faults that stretch the boot past it cut the boot
+            try:
+                rig.boot()                       # time advances here: the boot
+            except (_DurationReachedError, _DivergedError):
+                self._completed, self._stopped = False, True
+            self._end.disarm()
+            self.boot_s: float | None = None if self._stopped else rig.now_s
+            if self.boot_s is not None and on_boot is not None:
+                on_boot(self.boot_s, rig.boot_error)
+            self.end_s: float = (rig.now_s if self.boot_s is None
+                                 else _duration(opts, self.boot_s, self.motion_s))
+            rig.end_s = self.end_s
+        except BaseException:
+            rig.close()
+            raise
+
+    @property
+    def H(self) -> Any:  # noqa: N802 - the toolbox's name for the host's port (seed 000 table 20)
+        """The host's end of the robot's RS-232 link (the toolbox's ``H``: docs/host.md)."""
+        return self._rig.H
+
+    @property
+    def twin(self) -> Twin:
+        """The twin (boards, buses, plant)."""
+        return self._rig.twin
+
+    @property
+    def _rig(self) -> Rig:
+        assert self.rig is not None
+        return self.rig
+
+    @property
+    def now_s(self) -> float:
+        """The virtual time (simulated s)."""
+        return self._rig.now_s
+
+    def step(self, seconds: float = 0.02) -> dict[str, Any]:
+        """Let ``seconds`` of virtual time pass (the host waits on the twin's clock; the boards
+        run); returns :meth:`read`. :class:`ScenarioError` when the simulation diverged."""
+        if not seconds > 0:
+            raise ValueError(f"step({seconds!r}): give a positive number of simulated seconds")
+        try:
+            self._rig.sleep(seconds)
+        except _DivergedError:
+            self._stopped_by_divergence()
+            raise ScenarioError(f"{self.label}: the simulation diverged ({self._rig.monitor.diverged}): "
+                                f"the run ended at t={self.now_s:.3f} s") from None
+        return self.read()
+
+    def read(self) -> dict[str, Any]:
+        """The robot now, from the plant's ground truth and the Master's supervisor (reading takes
+        no time): ``t_s``, ``mode`` (the supervisor's), ``fell`` (at any sample so far),
+        ``fell_at_s``, ``trunk_tilt_deg``, ``cop_margin_mm`` (the CoP's distance inside the
+        support polygon), ``platform_tilt_deg``, ``joints_deg`` (every joint's true angle,
+        by MuJoCo joint name)."""
+        twin, mon = self._rig.twin, self._rig.monitor
+        truth = twin.plant.truth()
+        return {
+            "t_s": twin.now_s,
+            "mode": twin.master.supervisor.mode_name,
+            "fell": mon.fell or truth.fell,
+            "fell_at_s": mon.fell_at_s,
+            "trunk_tilt_deg": truth.trunk_tilt_deg,
+            "cop_margin_mm": truth.cop_margin_mm,
+            "platform_tilt_deg": twin.plant.tilt_deg,
+            "joints_deg": dict(truth.joint_angles_deg),
+        }
+
+    def drive(self) -> None:
+        """The scenario's own program (:meth:`Scenario.drive`: the planner's motions, or the
+        hold of its gains), once, ended at :attr:`end_s` whatever it does (``completed`` false);
+        time advances by its length. A failed request is the run's ``host_error`` where the run
+        tolerates it (faults, a stopped supervisor), as in ``run``."""
+        if self._driven:
+            raise ScenarioError(f"{self.label}: its program was driven already")
+        self._driven = True
+        rig = self._rig
+        if self._stopped or rig.host_error is not None:
+            return
+        self._end.arm(self.end_s)
+        try:
+            _drive(self.spec, rig, self.plan, self.label)    # time advances here: the scenario's program
+        except _DurationReachedError:
+            self._stopped = True                 # the run's end fell inside the program: cut there
+        except _DivergedError:
+            self._stopped_by_divergence()
+        finally:
+            self._end.disarm()
+        if self._end.fired:                      # also a program that swallowed its cut
+            self._completed = False
+
+    def finish(self) -> dict[str, Any]:
+        """The rest of the run as ``humanoid-twin run`` has it: the scenario's program (unless
+        :meth:`drive` ran it), the ``host_controller``, the robot settling until :attr:`end_s`.
+        Returns the summary (docs/scenarios.md), also kept in :attr:`summary`."""
+        rig, duration = self._rig, self.end_s
+        host_calls = None
+        try:
+            if not self._driven and not self._stopped and (not self.spec.moves or duration > rig.now_s):
+                self.drive()
+            self._driven = True
+            if not self._stopped:
+                if self._host_step is not None and rig.host_error is None:
+                    host_calls = _host_controller(rig, self._host_step, duration, self.opts.host_period_ms)
+                rig.sleep_until(duration)        # time advances here: the robot settles
+        except _DurationReachedError:
+            self._completed = False
+        except _DivergedError:
+            self._stopped_by_divergence()
+        finally:
+            self._end.disarm()
+            self._diverged.disarm()
+        check_signal()          # a signal that user code swallowed (and returned): not a finished run
+        completed = self._completed and rig.boot_error is None    # a failed boot: no program ran
+        self.summary = build_summary(rig, self.label, self.plan, completed=completed,
+                                     wall_s=time.perf_counter() - self._wall0, host_calls=host_calls)
+        return self.summary
+
+    def _stopped_by_divergence(self) -> None:
+        self._completed, self._stopped = False, True
+        self._diverged.disarm()
+
+    def close(self, failed: bool = False) -> None:
+        """Close the outputs and the twin (:meth:`Rig.close`); a recording's summary notes are
+        added to :attr:`summary` then (its compaction happens at the close). Files written under
+        temporary names (:func:`open_run`) take their final names now, or are removed when
+        ``failed`` (an exception left the ``with`` block) or the close itself failed: an
+        existing file is never replaced by a failed run. Closing twice does nothing."""
+        if getattr(self, "_closed", False) or self.rig is None:
+            return
+        self._closed = True
+        outputs = self.outputs
+        try:
+            self.rig.close()
+        except BaseException:
+            if outputs is not None:
+                outputs.discard()
+            raise
+        if outputs is not None and failed:
+            outputs.discard()
+        elif outputs is not None:
+            finals = dict(outputs.final)
+            outputs.commit()
+            if self.summary is not None:       # where the files are, as ``run`` reports them
+                self.summary.update({"recording" if k == "out" else k: str(p) for k, p in finals.items()})
+        if self.summary is not None:
+            note_recording(self.summary, self.rig)
+
+    def __enter__(self) -> Session:
+        return self
+
+    def __exit__(self, exc_type: type[BaseException] | None, *exc: object) -> None:
+        # Ctrl-C keeps what was recorded, closed and readable (as the CLI does)
+        self.close(failed=exc_type is not None and not issubclass(exc_type, KeyboardInterrupt))
+
+
+_OUTPUT_FIELDS = ("out", "can_log", "serial_log")
+
+
+def open_run(opts: RunOptions | str | Scenario = "stand", /, **fields: Any) -> Session:
+    """``humanoid_twin.open``: a run of a scenario, built and booted, to drive from Python or a
+    notebook (:class:`Session`: ``step``, ``read``, ``drive``, ``finish``, ``close``).
+
+    ``opts``: :class:`RunOptions` (the options of ``humanoid-twin run``, by the same names), or a
+    scenario (a name, ``FILE.py:NAME``, a :class:`Scenario`) with the options as keywords:
+    ``open_run("flexao", motion=30, out="flexao.rrd")``. As ``run --out`` does, the recording
+    (``out``, a ``.rrd``), the CAN log (``can_log``) and the serial log (``serial_log``) are
+    written under temporary names beside their own and renamed when the session closes; a session
+    that ended with an error leaves no file and replaces none. Nothing is recorded unless asked
+    (``humanoid-twin run`` records ``SCENARIO.rrd`` by default; from Python, name the file).
+
+    :class:`ScenarioInputError` (before anything is written) for a recording not named ``.rrd``,
+    a CAN log format python-can cannot write, or a place that cannot be written."""
+    import dataclasses
+
+    from humanoid_twin.outputs import Outputs
+
+    if not isinstance(opts, RunOptions):
+        opts = RunOptions(scenario=opts, **fields)
+    elif fields:
+        opts = dataclasses.replace(opts, **fields)
+    finals = {k: Path(getattr(opts, k)) for k in _OUTPUT_FIELDS if getattr(opts, k) is not None}
+    if "out" in finals and finals["out"].suffix != ".rrd":
+        raise ScenarioInputError(f"out={str(finals['out'])!r}: a rerun recording must end in .rrd")
+    if "can_log" in finals:
+        from humanoid_twin.recording.can_log import CanLogError, check_log_path
+
+        try:
+            check_log_path(finals["can_log"])
+        except CanLogError as exc:
+            raise ScenarioInputError(f"can_log: {exc}") from None
+    load_scenario(opts.scenario)            # a reference that names nothing: before any file
+    outputs = Outputs()
+    try:
+        temp = {k: outputs.add(k, path) for k, path in finals.items()}
+    except (OSError, ValueError) as exc:     # ValueError: a FIFO, a device (containment.output_target)
+        outputs.discard()
+        raise ScenarioInputError(f"cannot write there: {exc}") from None
+    if temp:
+        opts = dataclasses.replace(opts, **temp, can_log_name=finals["can_log"].name if "can_log" in finals
+                                   else opts.can_log_name)
+    try:
+        session = Session(opts)
+    except BaseException:
+        outputs.discard()
+        raise
+    session.outputs = outputs
+    return session
+
+
 def run(opts: RunOptions, on_progress: Callable[[float, float | None], None] | None = None,
         on_twin: Callable[[Any], None] | None = None,
         on_boot: Callable[[float, str | None], None] | None = None) -> dict[str, Any]:
-    """Run one scenario headless and return its summary (docs/scenarios.md).
+    """Run one scenario headless and return its summary (docs/scenarios.md): a :class:`Session`
+    opened and finished at once. The outputs are written to the names in ``opts`` as they go
+    (the CLI gives temporary names; :func:`open_run` does the same from Python).
 
     ``on_progress(t_s, end_s)`` is called every 0.1 s of virtual time: ``end_s`` is None during
     the boot (its length is not known in advance), then the run's end time. ``on_twin(twin)`` is
     called once the twin is built, before anything is written (``run --viewer`` attaches there).
+    ``on_boot(t_s, error)`` is called once the boot is over, before ``on_progress`` hears of the
+    run's end: ``error`` None when it worked, else why it failed (a run that tolerates it goes
+    on without the scenario's program: the summary's ``booted`` false).
 
     The run ends at its duration (``opts.duration``, or boot + ``motion_s`` or the tilt + 2 s)
     whatever the scenario's program does (``completed: false`` when it was cut, in the boot
     too); ``opts.wall_timeout`` is armed from this function's first line; a simulation that
-    diverges ends the run there (``outcome: diverged``).
-
-    ``on_boot(t_s, error)`` is called once the boot is over, before ``on_progress`` hears of the
-    run's end: ``error`` None when it worked, else why it failed (a run that tolerates it goes
-    on without the scenario's program: the summary's ``booted`` false)."""
+    diverges ends the run there (``outcome: diverged``)."""
     outer = wall_timeout_armed()
-    rig: Rig | None = None
+    session: Session | None = None
     try:
         arm_wall_timeout(opts.wall_timeout)      # from the first line: loading, planning, sizing
-        spec = with_fields(load_scenario(opts.scenario), opts.scenario_fields)   # --set scenario.FIELD=V
-        label = scenario_name(opts.scenario)
-        the_plan = scenario_plan(spec, label, opts.T, opts.motion, opts.perna, opts.control)
-        motion_s = scenario_motion_s(spec, the_plan, label)
-        host_step = load_host_controller(opts.host_controller) if opts.host_controller is not None else None
-        expected_s = (opts.duration if opts.duration is not None
-                      else BOOT_TIMEOUT_S + _after_boot_s(motion_s, opts.tilt))
-        wall0 = time.perf_counter()
         # MuJoCo's instability warning is the run's divergence, reported once (the summary's
         # ``diverged``) rather than as a warning line of its own
-        with quiet_instability_warnings(), _open_rig(opts, expected_s, on_twin, on_progress) as rig:
-            summary = _run_rig(rig, opts, spec, label, the_plan, motion_s, host_step, wall0, on_boot)
-        note_recording(summary, rig)
+        with quiet_instability_warnings():
+            # made first, then built: a --wall-timeout during the boot still finds the rig's time
+            session = Session.__new__(Session)
+            session.rig = None
+            session.__init__(opts, on_progress, on_twin, on_boot)   # type: ignore[misc]
+            with session:
+                summary = session.finish()
         return summary
     except WallTimeoutExpired:
-        now = rig.now_s if rig is not None else 0.0
-        where = f"at t={now:.3f} s simulated" if rig is not None else "before the twin started"
+        rig = session.rig if session is not None else None
+        where = f"at t={rig.now_s:.3f} s simulated" if rig is not None else "before the twin started"
         raise ScenarioError(f"the run took more than {opts.wall_timeout:g} wall seconds (--wall-timeout): "
                             f"stopped {where}") from None
     finally:
         if not outer:
             disarm_wall_timeout()
-
-
-def _run_rig(rig: Rig, opts: RunOptions, spec: Scenario, label: str, the_plan: Plan, motion_s: float,
-             host_step: Callable[..., Any] | None, wall0: float,
-             on_boot: Callable[[float, str | None], None] | None = None) -> dict[str, Any]:
-    """boot -> drive -> host controller -> settle on an assembled rig, then the summary. The
-    run's end is armed before the boot when ``--duration`` is given (faults that stretch the boot
-    past it cut the boot: ``boot_s`` None), else at the boot's end; a divergence ends the run."""
-    end = _Bound(rig.twin, _DurationReachedError)
-    diverged = _Bound(rig.twin, _DivergedError)
-    rig.monitor.on_diverged = lambda: diverged.arm(rig.now_s)
-    if opts.duration is not None:
-        end.arm(opts.duration)
-    completed, host_calls = True, None
-    try:
-        rig.boot()                                   # time advances here: the boot
-        if on_boot is not None:
-            on_boot(rig.now_s, rig.boot_error)
-        duration = rig.end_s = _duration(opts, rig.now_s, motion_s)
-        end.arm(duration)
-        if rig.host_error is None and (not spec.moves or duration > rig.now_s):
-            _drive(spec, rig, the_plan, label)       # time advances here: the scenario's program
-        end.disarm()
-        # a program that swallowed its cut; a failed boot: no program ran
-        completed = not end.fired and rig.boot_error is None
-        if host_step is not None and rig.host_error is None:
-            host_calls = _host_controller(rig, host_step, duration, opts.host_period_ms)
-        rig.sleep_until(duration)                    # time advances here: the robot settles
-    except _DurationReachedError:
-        completed = False                            # the run's end fell inside the boot or the program
-    except _DivergedError:
-        completed = False                            # the physics is no longer a simulation: ended here
-    finally:
-        end.disarm()
-        diverged.disarm()
-    check_signal()          # a signal that user code swallowed (and returned): not a finished run
-    return build_summary(rig, label, the_plan, completed=completed,
-                         wall_s=time.perf_counter() - wall0, host_calls=host_calls)
 
 
 def _open_rig(opts: RunOptions, expected_s: float, on_twin: Callable[[Any], None] | None,
@@ -895,7 +1110,7 @@ __all__ = ["RunOptions", "outcome", "SLIP_HELD_MM", "SUMMARY_KEYS", "summary_key
            "ENTRY_POINT_GROUP", "boot", "hold", "BootError", "ScenarioError", "ScenarioInputError",
            "ScenarioLoadError", "SCENARIOS", "with_fields", "own_fields", "SCENARIO_FIELD_PREFIX",
            "CONTROL_CHOICES", "plan", "run", "run_plan", "tilt_profile",
-           "expected_run_s", "MAX_DURATION_S", "check_motion_s", "scenario_motion_s",
+           "expected_run_s", "Session", "open_run", "MAX_DURATION_S", "check_motion_s", "scenario_motion_s",
            "scenario_plan", "WallTimeoutExpired", "arm_wall_timeout", "disarm_wall_timeout",
            "wall_timeout_armed",
            "Rig", "RigOptions", "BOOT_TIMEOUT_S", "TILT_RATE_DEG_S", "SETTLE_S", "BOOT_MIN_S"]

@@ -208,12 +208,25 @@ class _DevTools:
         stop(self.proc)
 
 
-def shoot_web(url: str, out: Path, size: str, profile: Path, settle_s: float = 90.0) -> int:
+def _page(png: Path) -> bytes:
+    """The pixels below the viewer's top bar (whose latency figure changes while nothing else
+    does); empty without Pillow."""
+    try:
+        from PIL import Image
+    except ImportError:
+        return b""
+    with Image.open(png) as img:
+        return img.convert("RGB").crop((0, 60, img.width, img.height)).tobytes()
+
+
+def shoot_web(url: str, out: Path, size: str, profile: Path, settle_s: float = 90.0,
+              stable: bool = False) -> int:
     """Open ``url`` in headless Chromium (WebGL on SwiftShader: no GPU needed) and photograph the
     page every 2 s of wall time until the views are drawn (:data:`DRAWN_MIN_COLOURS`) or
     ``settle_s`` has passed; returns :func:`drawn_colours` of the last picture (-1 without
     Pillow: one picture after ``settle_s / 3``). Wall time, not the page's virtual time: rerun's
-    wasm bundle compiles for seconds, tens on a loaded machine."""
+    wasm bundle compiles for seconds, tens on a loaded machine. ``stable``: also wait until two
+    pictures in a row are the same (the whole recording loaded, the time cursor at its end)."""
     import base64
 
     w, h = (int(v) for v in size.split(","))
@@ -233,18 +246,22 @@ def shoot_web(url: str, out: Path, size: str, profile: Path, settle_s: float = 9
         except ImportError:
             poll_s = settle_s / 3
         deadline = time.monotonic() + settle_s
+        before = None
         while True:
             time.sleep(poll_s)
             data = cdp.call("Page.captureScreenshot", {"format": "png"}, session)["data"]
             out.write_bytes(base64.b64decode(data))
             colours = drawn_colours(out)
-            if colours < 0 or colours >= DRAWN_MIN_COLOURS or time.monotonic() > deadline:
+            page = _page(out) if stable else None
+            drawn = colours >= DRAWN_MIN_COLOURS and (not stable or page == before)
+            if colours < 0 or drawn or time.monotonic() > deadline:
                 return colours
+            before = page
     finally:
         cdp.close()
 
 
-def web_shot(rrd: Path, out: Path, size: str, tmp: Path, settle_s: float = 120.0) -> None:
+def web_shot(rrd: Path, out: Path, size: str, tmp: Path, settle_s: float = 300.0) -> None:
     """``humanoid-twin view --web`` on ``rrd``, photographed by headless Chromium."""
     from humanoid_twin.recording.viewer import free_loopback_port
 
@@ -258,10 +275,53 @@ def web_shot(rrd: Path, out: Path, size: str, tmp: Path, settle_s: float = 120.0
         time.sleep(2)
         w, h = size.split("x")
         out.parent.mkdir(parents=True, exist_ok=True)
-        if 0 <= shoot_web(url, out, f"{w},{h}", tmp / "chromium-profile", settle_s) < DRAWN_MIN_COLOURS:
+        if 0 <= shoot_web(url, out, f"{w},{h}", tmp / "chromium-profile", settle_s, stable=True) \
+                < DRAWN_MIN_COLOURS:
             raise RuntimeError(f"the web viewer drew nothing within {settle_s:g} s: {out}")
     finally:
         stop(proc)
+
+
+def _slug(name: str) -> str:
+    slug = "".join(c if c.isalnum() else "_" for c in name.lower().replace("&", "and")).strip("_")
+    while "__" in slug:
+        slug = slug.replace("__", "_")
+    return slug
+
+
+def web_tab_shots(rrd: Path, tabs: list[str], out_dir: Path, size: str, tmp: Path, prefix: str,
+                  settle_s: float = 300.0) -> list[Path]:
+    """The web viewer on ``rrd`` once per tab of ``tabs`` (by name), that tab shown: the recording
+    served with a blueprint file (``.rbl``, the recording's own default layout with that tab
+    active), which the viewer makes the active layout. ``out_dir/<prefix>_<tab>.png``."""
+    from humanoid_twin.protocol.wire import SCUS
+    from humanoid_twin.recording.blueprint import default_blueprint
+    from humanoid_twin.recording.columns import master_groups
+    from humanoid_twin.recording.viewer import free_loopback_port, web_url, web_viewer_command
+    from humanoid_twin.twin import Twin
+
+    with Twin(seed=0) as twin:
+        masters = [path for path, _ in master_groups(twin)]
+    written = []
+    for tab in tabs:
+        rbl = tmp / f"{_slug(tab)}.rbl"
+        default_blueprint(SCUS, masters, active_tab=tab).save("humanoid_twin", rbl)
+        port, grpc = free_loopback_port(), free_loopback_port()
+        proc = subprocess.Popen([*web_viewer_command(rrd, port, grpc), str(rbl)], stdout=subprocess.DEVNULL,
+                                stderr=subprocess.DEVNULL, start_new_session=True)
+        try:
+            time.sleep(3)
+            out = out_dir / f"{prefix}_{_slug(tab)}.png"
+            w, h = size.split("x")
+            out.parent.mkdir(parents=True, exist_ok=True)
+            profile = tmp / f"chromium-{_slug(tab)}"
+            colours = shoot_web(web_url(port, grpc), out, f"{w},{h}", profile, settle_s, stable=True)
+            if 0 <= colours < DRAWN_MIN_COLOURS:
+                raise RuntimeError(f"the web viewer drew nothing within {settle_s:g} s: {out}")
+            written.append(out)
+        finally:
+            stop(proc)
+    return written
 
 
 def _tabs_container(bp: dict) -> str:
@@ -287,8 +347,7 @@ def tab_shots(client: ViewerClient, bp: dict, out_dir: Path) -> list[Path]:
         bp[tabs]["ContainerBlueprint"]["active_tab"] = content
         client.set_blueprint(bp, of="recording")
         time.sleep(3)  # let the new tab paint
-        slug = "".join(c if c.isalnum() else "_" for c in name.lower().replace("&", "and")).strip("_")
-        path = out_dir / f"rerun_tab_{slug.replace('__', '_')}.png"
+        path = out_dir / f"rerun_tab_{_slug(name)}.png"
         client.save_screenshot(str(path.resolve()))
         written.append(path)
     return written
@@ -302,14 +361,31 @@ def main() -> None:
     ap.add_argument("--size", default="1600x1000", help="viewer window size in points")
     ap.add_argument("--only", choices=("native", "web"), help="take one of the two screenshots")
     ap.add_argument("--tabs", type=Path, help="also one native screenshot per tab, into this folder")
+    ap.add_argument("--scenario", default="flexao", help="the run photographed (default flexao; e.g. "
+                    "examples/push_recovery.py:push_recovery, which falls)")
+    ap.add_argument("--web-tabs", default="", metavar="NAME,NAME",
+                    help="web viewer pictures with these tabs shown (e.g. Balance,Supervisor), into "
+                    "the folder of --web-out, named after it and the tab; then no other picture")
     args = ap.parse_args()
 
     with tempfile.TemporaryDirectory() as tmp:
-        rrd = Path(tmp) / "flexao.rrd"
+        rrd = Path(tmp) / "run.rrd"
+        scenario = args.scenario
+        if ".py:" in scenario:          # a user's file: found from the temporary folder too
+            where, _, name = scenario.rpartition(":")
+            scenario = f"{Path(where).resolve()}:{name}"
         subprocess.run(
-            [sys.executable, "-m", "humanoid_twin.cli.main", "run", "flexao", "--out", str(rrd)],
-            cwd=tmp, check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+            [sys.executable, "-m", "humanoid_twin.cli.main", "run", scenario, "--out", str(rrd)],
+            cwd=tmp, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
         )
+        if not rrd.is_file():
+            raise SystemExit(f"run {args.scenario} wrote no recording")
+        if args.web_tabs:
+            tabs = [t.strip() for t in args.web_tabs.split(",") if t.strip()]
+            for png in web_tab_shots(rrd, tabs, args.web_out.parent, args.size, Path(tmp), args.web_out.stem):
+                shrink(png)
+                print(f"wrote {png} ({png.stat().st_size} bytes)")
+            return
         if args.only in (None, "web"):
             web_shot(rrd, args.web_out, args.size, Path(tmp))
             shrink(args.web_out)

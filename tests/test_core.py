@@ -92,3 +92,58 @@ def test_a_compiled_module_older_than_its_source_is_named(tmp_path):
         assert core.stale_modules(pkg) == ["humanoid_twin.bus.network"]
     (tmp_path / "setup.py").unlink()               # an installed package: never stale
     assert core.stale_modules(pkg) == []
+
+
+def _source_tree_with_an_old_build(tmp_path):
+    """A copy of the package as an editable install has it (``setup.py`` beside it) whose compiled
+    clock is older than ``clock.py``: an edit not rebuilt. The compiled module is this install's
+    own when it has one, else a file that cannot be loaded at all (either must not run)."""
+    import importlib.machinery
+    import shutil
+    from pathlib import Path
+
+    src = Path(humanoid_twin.__file__).resolve().parent
+    shutil.copytree(src, tmp_path / "humanoid_twin",
+                    ignore=shutil.ignore_patterns("*.so", "*.pyd", "__pycache__"))
+    (tmp_path / "setup.py").write_text("")
+    suffix = importlib.machinery.EXTENSION_SUFFIXES[0]
+    built = tmp_path / "humanoid_twin" / f"clock{suffix}"
+    mine = sorted(src.glob("clock.*.so"))
+    if mine:
+        shutil.copy2(mine[0], built)
+    else:
+        built.write_bytes(b"an old build of clock.py")
+    source = tmp_path / "humanoid_twin" / "clock.py"
+    old = source.stat().st_mtime - 60
+    os.utime(built, (old, old))
+    return tmp_path
+
+
+def test_an_edit_not_rebuilt_runs_its_source_with_a_warning_from_python(tmp_path):
+    # a script (or a notebook) importing the package, not the CLI: it runs the edited source, and
+    # a warning on stderr names the stale module and points at the script's import line
+    tree = _source_tree_with_an_old_build(tmp_path)
+    script = tree / "user_script.py"
+    script.write_text("import humanoid_twin.scenarios\n"
+                      "import humanoid_twin.clock as c, humanoid_twin.core as k\n"
+                      "print(c.__file__); print(k.core_kind())\n")
+    env = {k: v for k, v in os.environ.items() if k not in (core.PURE_PYTHON_ENV, "PYTHONWARNINGS")}
+    env["PYTHONPATH"] = str(tree)
+    r = subprocess.run([sys.executable, script.name], cwd=tree, capture_output=True, text=True, timeout=120,
+                       env=env)
+    assert r.returncode == 0, r.stderr
+    where, kind = r.stdout.split()
+    assert where == str(tree / "humanoid_twin" / "clock.py") and kind == "python"
+    assert "user_script.py:1: StaleCoreWarning: humanoid-twin: the compiled core is older than its source " \
+           "(humanoid_twin.clock): running the source instead" in r.stderr, r.stderr
+    assert "scripts/build_core.py" in r.stderr
+    assert r.stderr.count("StaleCoreWarning") == 1, r.stderr
+
+
+def test_the_stale_check_at_import_is_cheap():
+    import time
+
+    t0 = time.perf_counter()
+    for _ in range(10):
+        core.stale_modules()
+    assert (time.perf_counter() - t0) / 10 < 0.05

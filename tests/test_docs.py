@@ -22,7 +22,17 @@ folder, the state of a fresh clone, and runs the examples of every page in docum
   (a Python block that talks to a server: CMD, a ``serve``, is started first and the block's
   ``/dev/pts/N`` or ``socket://HOST:PORT`` is replaced by the port it prints).
 
-Inline mentions in backquotes are names of commands, not examples, and are not run.
+Commands written inline in the prose, in backquotes (```humanoid-twin sweep stand --param ...```,
+also across a line break), are checked without being run, with the CLI's own parser: a sentence
+names a command and says what it does, often with placeholders, while the examples to run are the
+blocks (a command worth running is written in a block). Each one parses as written, or the test
+names its page and line: a missing required option, an unknown flag or command, a value its type
+refuses. In them, an upper-case word is a placeholder (``SCENARIO``, ``FILE.rrd``, ``DEG``,
+``SPEC`` ...: a sample value of its kind is put in its place, :data:`PLACEHOLDERS`), ``[`` ``]``
+mark optional parts (parsed as given), ``a|b`` is ``a``, and ``...`` elides what the command
+needs besides (an option's value: a sample; elsewhere: the command may lack its required
+arguments). ``humanoid-twin run`` or ``humanoid-twin run/serve`` alone names commands (each must
+exist); ``humanoid-twin serve: ...`` (the second word ending in a colon) quotes a message.
 """
 
 from __future__ import annotations
@@ -219,6 +229,164 @@ def _parse_only(cmd: str, clone: Path, where: str) -> None:
         r = subprocess.run([sys.executable, argv[1], "--help"], cwd=clone, env=_env(clone),
                            capture_output=True, text=True, timeout=120)
         assert r.returncode == 0, f"{where}: {argv[1]} --help: {r.stderr}"
+
+
+# -- commands written inline in the prose --------------------------------------------------------
+INLINE_CODE = re.compile(r"(?<!`)`([^`]+)`(?!`)")
+INLINE_TWIN = re.compile(r"^(?:\.venv/bin/)?humanoid-twin(?:\s|$)")
+PLACEHOLDER = re.compile(r"^[A-Z][A-Z0-9_]*(?:\.[\w.]+)?$")
+# a sample value per placeholder (the others: the word in lower case, which any path or name takes)
+PLACEHOLDERS = {"SCENARIO": "stand", "DEG": "10", "S": "3", "N": "1", "F": "10", "X": "1",
+                "SPEC": "silent:3@3.0", "PORT": "5000", "ADDR": "127.0.0.1:9876", "CH": "vcan0", "SCU": "1",
+                "NODE": "0"}
+
+
+@dataclass
+class Inline:
+    doc: Path
+    line: int
+    text: str
+
+    @property
+    def where(self) -> str:
+        return f"{self.doc.relative_to(ROOT)}:{self.line}"
+
+
+def _prose(doc: Path) -> list[tuple[int, str]]:
+    """``(first line number, text)`` of each paragraph of ``doc`` outside its code blocks and HTML
+    comments (an inline code span may cross a line break, never a paragraph)."""
+    lines = doc.read_text(encoding="utf-8").splitlines()
+    fenced = set()
+    for b in blocks(doc):
+        n = b.text.count("\n") + 1
+        first = b.line - (0 if lines[b.line - 1].strip().startswith("```") else 1)
+        fenced.update(range(first - 1, first + n + 1))
+    out, para, start = [], [], 0
+    for i, ln in enumerate(lines + [""]):
+        if i in fenced or not ln.strip() or ln.startswith("    ") and not para:
+            if para:
+                out.append((start + 1, re.sub(r"<!--.*?-->", "", "\n".join(para), flags=re.S)))
+            para = []
+            continue
+        if not para:
+            start = i
+        para.append(ln)
+    return out
+
+
+def inline_commands(doc: Path) -> list[Inline]:
+    """Every ``humanoid-twin ...`` written inline in ``doc``'s prose, whitespace made single."""
+    found = []
+    for line, text in _prose(doc):
+        for m in INLINE_CODE.finditer(text):
+            code = " ".join(m.group(1).split())
+            if INLINE_TWIN.match(code):
+                found.append(Inline(doc, line + text[:m.start()].count("\n"), code))
+    return found
+
+
+ALL_INLINE = [c for doc in DOCS for c in inline_commands(doc)]
+
+
+def _sample_argv(text: str) -> tuple[list[str], bool]:
+    """The words of an inline command with each placeholder given a sample value (module
+    docstring); and whether ``...`` elided something the command may need."""
+    bare = text.replace("[", " ").replace("]", " ")
+    try:
+        words = shlex.split(bare)[1:]
+    except ValueError:                          # an unbalanced quote: the words as written
+        words = bare.split()[1:]
+    argv, elided = [], False
+    for k, w in enumerate(words):
+        w = w.split("|")[0] if "|" in w and w != "|" else w
+        if w in ("|", ">", ">>", "2>", "2>&1", "&&", ";", "&"):
+            break                               # the shell's from here (a pipe, a redirection), or
+                                                # alternatives of a whole tail: the first one
+        if w.endswith("..."):
+            elided = True
+            w = w[:-3]
+            if not w:
+                if argv and argv[-1].startswith("-") and "=" not in argv[-1] and k == len(argv):
+                    argv.append("x")            # an option's value
+                continue
+        if PLACEHOLDER.match(w):
+            stem, dot, ext = w.partition(".")
+            w = PLACEHOLDERS.get(stem, stem.lower()) + dot + ext
+        elif "=" in w and not w.startswith("-"):
+            name, _, value = w.partition("=")
+            w = f"{name}={PLACEHOLDERS.get(value, value)}"
+        argv.append(w)
+    return argv, elided
+
+
+def check_inline(cmd: Inline) -> str | None:
+    """Why the inline command ``cmd`` does not parse with the CLI's parser, or None when it does
+    (or when it names commands, or quotes a message: module docstring)."""
+    import argparse
+    import contextlib
+    import io
+
+    from humanoid_twin.cli.main import build_parser
+
+    parser = build_parser()
+    words = cmd.text.split()
+    if len(words) > 1 and words[1].endswith(":"):
+        return None                             # a message the CLI prints: `humanoid-twin serve: wrote F`
+    sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    if len(words) == 1:
+        return None                             # the program's name
+    if len(words) == 2 and not words[1].startswith("-"):
+        unknown = [w for w in words[1].split("/") if w not in sub.choices]
+        return f"no such command {' '.join(unknown)}" if unknown else None
+    argv, elided = _sample_argv(cmd.text)
+    err = io.StringIO()
+    try:
+        with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
+            # as the CLI's main: sweep gives the options it does not know to every run (checked
+            # as run's, cli/sweep.py)
+            args, extra = parser.parse_known_args(argv)
+            if extra and args.command == "sweep":
+                parser.parse_args(["run", "stand", *extra])
+            elif extra:
+                parser.error(f"unrecognized arguments: {' '.join(extra)}")
+    except SystemExit as exc:
+        message = err.getvalue().strip()
+        if exc.code == 0 or (elided and "arguments are required" in message):
+            return None
+        return f"`{' '.join(argv)}`: {message or exc}"
+    return None
+
+
+def test_every_inline_command_of_the_docs_parses() -> None:
+    assert len(ALL_INLINE) >= 20, [c.text for c in ALL_INLINE]
+    failures = [f"{c.where}: `{c.text}`: {why}" for c in ALL_INLINE if (why := check_inline(c))]
+    assert not failures, "\n".join(failures)
+
+
+def test_the_inline_check_finds_what_fails() -> None:
+    where = Inline(ROOT / "README.md", 1, "")
+    bad = {"humanoid-twin sweep stand --param pic-mhz=2,5,10,40": "--out",        # required
+           "humanoid-twin run stand --tilt 200": "--tilt",                         # its type refuses it
+           "humanoid-twin run SCENARIO --no-such-flag": "unrecognized",
+           "humanoid-twin run/frobnicate": "frobnicate",
+           "humanoid-twin view --web": "file"}
+    for text, why in bad.items():
+        where.text = text
+        assert why in (check_inline(where) or ""), text
+    good = ("humanoid-twin run SCENARIO --fault SPEC [--fault SPEC ...]", "humanoid-twin serve --law ...",
+            "humanoid-twin run ... --out FILE.rrd --can-log FILE.asc", "humanoid-twin serve: wrote x.serial",
+            "humanoid-twin --version", "humanoid-twin run/serve/view/sweep",
+            "humanoid-twin sweep stand --param pic-mhz=2,5 --out FILE.csv",
+            "humanoid-twin run stand --json | jq .fell", "humanoid-twin run stand --no-record > out.txt",
+            "humanoid-twin sweep stand --param 'tilt=0,10' --out t.csv")
+    for text in good:
+        where.text = text
+        assert check_inline(where) is None, (text, check_inline(where))
+    # found in the prose across a line break, not in code blocks nor comments
+    doc = ROOT / "README.md"
+    spans = [c.text for c in inline_commands(doc)]
+    assert "humanoid-twin run --help" in spans, spans
+    assert not any("flexao --out flexao.rrd" in t for t in spans)
 
 
 def _run_shell(block: Block, clone: Path) -> None:

@@ -39,7 +39,7 @@ PERIOD_US = 20_000
 ROWS = DURATION_US // PERIOD_US + 1        # samples at 0, 20 ms, ..., 3.0 s
 KNEE_DEG = 10
 # the digest of the driven run's recording (test_recorded_content_is_pinned)
-RECORDED_CONTENT_SHA256 = "0f8a6ba4893c884015e5d334fb9ce4d2f1ef66575f1a4fe6e8fe74c8100a4d66"
+RECORDED_CONTENT_SHA256 = "407c2385dd6ee42bc3e54fb34c2759580f76b1665f1f611cf5a84d49fa5d33ba"
 
 
 def _request(port, op: int, scu: int, param: int, d1: int = 0, d2: int = 0, d3: int = 0) -> bytes:

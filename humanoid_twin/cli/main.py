@@ -49,6 +49,13 @@ from humanoid_twin.cli.options import (
     scenario_arg,
 )
 from humanoid_twin.cli.options import usage_error as _usage_error
+from humanoid_twin.outputs import (  # noqa: F401 - temp_name, remove_stale_partials: their home was here
+    NAME_MAX,
+    PARTIAL_PREFIX,
+    Outputs,
+    remove_stale_partials,
+    temp_name,
+)
 
 EXIT_SUPERVISOR = 3     # the run ended with the supervisor in safe or estop (docs/supervisor.md)
 
@@ -215,7 +222,6 @@ def build_parser() -> argparse.ArgumentParser:
 MIN_FREE_BYTES = 8 * 2**20  # a run's outputs need at least this much free disk besides their own size
 EXIT_INTERRUPTED = 130      # SIGINT (Ctrl-C)
 EXIT_TERMINATED = 143       # SIGTERM (timeout, CI runners, docker stop)
-NAME_MAX = 255              # bytes in a file name (Linux, macOS)
 
 # What a run writes, per simulated second, measured on stand and flexao (docs/scenarios.md,
 # "Disk space"): the recording streams 186-215 kB/s (220 000 bound); the CAN wire carries 3 800
@@ -251,57 +257,6 @@ def _check_writable(path: Path, what: str) -> Path:
     return target
 
 
-PARTIAL_PREFIX = ".partial-"     # a run's temporary outputs: .partial-PID-NAME beside NAME
-
-
-def temp_name(path: Path, pid: int | None = None) -> Path:
-    """The temporary name a run (process ``pid``, default this one) writes ``path`` under (beside
-    it, renamed at the end): the suffixes kept at the end (the format follows them), and never
-    longer than a file name may be (a valid 252-character name still gets a valid temporary one)."""
-    pid = os.getpid() if pid is None else pid
-    name = f"{PARTIAL_PREFIX}{pid}-{path.name}"
-    if len(os.fsencode(name)) <= NAME_MAX:
-        return path.with_name(name)
-    import hashlib
-
-    suffixes = path.suffixes[-2:] if path.suffix.lower() == ".gz" else path.suffixes[-1:]
-    keep = "".join(suffixes)[-40:]
-    digest = hashlib.sha256(os.fsencode(path.name)).hexdigest()[:16]
-    return path.with_name(f"{PARTIAL_PREFIX}{pid}-{digest}{keep}")
-
-
-def _alive(pid: int) -> bool:
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except OSError:             # another user's process: alive
-        return True
-    return True
-
-
-def remove_stale_partials(path: Path) -> list[Path]:
-    """Remove the temporary files of ``path`` left by runs whose process is gone (a process ended
-    at once, where no ``finally`` runs: ``os._exit`` in user code, SIGKILL, a power cut; issue
-    36); returns them. A file of a process still alive is left alone."""
-    removed = []
-    try:
-        entries = list(os.scandir(path.parent))
-    except OSError:
-        return removed
-    for entry in entries:
-        pid_text = entry.name[len(PARTIAL_PREFIX):].partition("-")[0]
-        if not entry.name.startswith(PARTIAL_PREFIX) or not pid_text.isdigit():
-            continue
-        pid = int(pid_text)
-        if pid == os.getpid() or entry.name != temp_name(path, pid).name or _alive(pid):
-            continue
-        with contextlib.suppress(OSError):
-            os.unlink(entry.path)
-            removed.append(Path(entry.path))
-    return removed
-
-
 def output_bytes(kind: str, path: Path, expected_s: float) -> int:
     """What a run of ``expected_s`` simulated seconds writes to ``path`` at most (bytes): a
     recording (``kind`` "out"), twice over when it is compacted at the end (the compaction writes
@@ -322,16 +277,12 @@ def output_bytes(kind: str, path: Path, expected_s: float) -> int:
     return round(expected_s * CAN_FRAMES_PER_S * per_frame)
 
 
-class _Outputs:
+class _Outputs(Outputs):
     """The run's files are written under temporary names next to their final ones and renamed at
-    the end: a failed run never replaces an existing file. Each temporary file is created up
-    front (an unwritable place is found before the run: exit 2), once the free space of every
-    disk has been checked against what the run will write there (:func:`output_bytes`)."""
-
-    def __init__(self) -> None:
-        self.final: dict[str, Path] = {}       # as the user named them (messages, the summary)
-        self.target: dict[str, Path] = {}      # the files they name (through symbolic links)
-        self.temp: dict[str, Path] = {}
+    the end (humanoid_twin/outputs.py): a failed run never replaces an existing file. Each temporary
+    file is created up front (an unwritable place is found before the run: exit 2), once the free
+    space of every disk has been checked against what the run will write there
+    (:func:`output_bytes`)."""
 
     def check_space(self, wanted: dict[str, tuple[Path, str]], expected_s: float) -> None:
         """Every disk has room for what the run writes on it, plus :data:`MIN_FREE_BYTES` (an
@@ -364,48 +315,14 @@ class _Outputs:
         files["can_log_name"] = None if args.can_log is None else args.can_log.name
         return files
 
-    def add(self, key: str, path: Path, what: str) -> Path:
-        """Create the temporary file of output ``key`` (``path``, named by ``what``), beside the
-        file ``path`` names (a symbolic link is followed: its target is replaced at the end, the
-        link stays), once the temporary files that dead runs left for it are removed."""
-        path = path.expanduser()
-        target = _check_writable(path, what)
-        tmp = temp_name(target)
-        remove_stale_partials(target)
-        from humanoid_twin import signals
-
-        with signals.deferred():     # created and registered together: no stray file after a signal
-            try:
-                os.close(os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o644))
-            except OSError as exc:
-                self.discard()
-                raise _usage_error(f"{what} {path}: cannot write there: {exc.strerror or exc}") from None
-            self.final[key], self.target[key], self.temp[key] = path, target, tmp
-        return tmp
-
-    def commit(self) -> None:
-        from humanoid_twin import signals
-
-        with signals.deferred():     # every rename done before a signal is delivered
-            for key, tmp in list(self.temp.items()):
-                if tmp.exists():
-                    os.replace(tmp, self.target[key])
-                del self.temp[key]
-
-    def discard(self) -> None:
-        from humanoid_twin import signals
-
-        with signals.deferred():
-            for tmp in self.temp.values():
-                with contextlib.suppress(OSError):
-                    tmp.unlink()
-            self.temp.clear()
-
-    def final_names(self, text: str) -> str:
-        """``text`` with each temporary name replaced by its final one (error messages)."""
-        for key, tmp in self.temp.items():
-            text = text.replace(str(tmp), str(self.final[key]))
-        return text
+    def add(self, key: str, path: Path, what: str) -> Path:  # type: ignore[override]
+        """As :meth:`Outputs.add`, checked first as the CLI checks an output (one line, exit 2)."""
+        _check_writable(path.expanduser(), what)
+        try:
+            return super().add(key, path)
+        except OSError as exc:
+            self.discard()
+            raise _usage_error(f"{what} {path}: cannot write there: {exc.strerror or exc}") from None
 
 
 def check_run_inputs(args: argparse.Namespace, load: bool = True) -> dict[str, Any]:
@@ -770,17 +687,6 @@ def cmd_replay(args: argparse.Namespace) -> int:
     return replay_command(args, _Outputs())
 
 
-def _warn_stale_core() -> None:
-    """One line on stderr when, in a source tree, a compiled module is older than its source."""
-    from humanoid_twin.core import PURE_PYTHON_ENV, stale_modules
-
-    stale = stale_modules()
-    if stale:
-        sys.stderr.write(f"humanoid-twin: warning: the compiled core is older than its source "
-                         f"({', '.join(stale[:3])}{' ...' if len(stale) > 3 else ''}): rebuild with "
-                         f"'python scripts/build_core.py', or run the source with {PURE_PYTHON_ENV}=1\n")
-
-
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``humanoid-twin`` console script.
 
@@ -812,7 +718,6 @@ def _command(argv: list[str] | None) -> int:
         if extra and args.command != "sweep":     # sweep gives run's options it does not know to every run
             parser.error(f"unrecognized arguments: {' '.join(extra)}")
         args.run_args = extra
-        _warn_stale_core()
         handler = {"run": cmd_run, "serve": cmd_serve, "view": cmd_view, "sweep": cmd_sweep,
                    "params": cmd_params, "compare": _cmd_compare, "calibrate": _cmd_calibrate,
                    "replay": cmd_replay}[args.command]

@@ -35,9 +35,13 @@ __all__ = ["default_blueprint", "log_keys", "LEG_SCUS"]
 
 
 # The 3D eye: framed on the robot (about 0.5 m tall, standing at the origin, facing +x), seen from
-# its front right, a little above the hips, instead of rerun's default framing of the whole floor.
-EYE_POSITION = (0.70, -0.60, 0.45)
-EYE_TARGET = (0.0, 0.0, 0.22)
+# its front right and above, instead of rerun's default framing of the whole floor; far enough
+# that a robot that falls, whichever way (its 0.5 m along the floor around its feet), stays whole
+# in the picture: the eye at (0.70, -0.60, 0.45) looking at the hips lost a fallen robot at the
+# edge of the view, and rerun's tracking of the trunk (EyeControls3D.tracking_entity) kept the
+# eye at its height while the trunk fell, looking at the robot's side from the floor.
+EYE_POSITION = (1.00, -0.85, 0.75)
+EYE_TARGET = (0.05, 0.0, 0.12)
 # Legends: in the top-left corner of a plot with several series; none on a plot with one (its
 # title names it) nor on the joint plots, whose five series are named once, in a key line above
 # their grid (five-entry legends covered the first seconds of every joint plot).
@@ -112,11 +116,13 @@ def log_params(rec: Any, params: Mapping[str, float]) -> None:
 
 
 def default_blueprint(
-    scus: Sequence[int] = SCUS, master_entities: Sequence[str] = (), params: bool = False
+    scus: Sequence[int] = SCUS, master_entities: Sequence[str] = (), params: bool = False,
+    active_tab: str | None = None,
 ) -> rrb.Blueprint:
     """The blueprint sent with every recording (see docs/recording.md, "Blueprint");
     ``master_entities``: the ``master/...`` counter entities, one plot each; ``params``: a
-    Parameters tab (a run with non-default parameters, :func:`log_params`)."""
+    Parameters tab (a run with non-default parameters, :func:`log_params`); ``active_tab``: the
+    name of the tab shown first (default the first, the right leg's joints)."""
     legs = [s for s in LEG_SCUS if s in scus]
     upper = [s for s in scus if s not in LEG_SCUS]
     feet = [s for s in scus if s in FOOT_OF_SCU]
@@ -223,8 +229,9 @@ def default_blueprint(
     # the events beside the plot: a log's lines are short, a full-width table left most of it empty
     supervisor = rrb.Horizontal(
         _plot("Supervisor mode and faults latched", f"{SUPERVISOR}/mode", y_range=_MODE_RANGE),
-        rrb.TextLogView(name="Supervisor events", origin=f"{SUPERVISOR}/events", columns=_LOG_COLUMNS),
-        column_shares=[3, 2],
+        rrb.TextLogView(name="Events: modes, faults, injections, the fall", origin=f"{SUPERVISOR}/events",
+                        columns=_LOG_COLUMNS),
+        column_shares=[1, 1],       # [3, 2] cut the longer lines (a fall's) at the window's edge
         name="Supervisor",
     )
     tabs: list[rrb.Container] = []
@@ -243,9 +250,18 @@ def default_blueprint(
     if params:
         tabs.append(rrb.TextDocumentView(origin=PARAMS, name="Parameters"))
     return rrb.Blueprint(
-        rrb.Horizontal(left, rrb.Tabs(*tabs), column_shares=[2, 3]),
+        rrb.Horizontal(left, rrb.Tabs(*tabs, active_tab=_tab_index(tabs, active_tab)), column_shares=[2, 3]),
         rrb.TimePanel(timeline="sim_time", state="collapsed"),
         rrb.BlueprintPanel(state="collapsed"),
         rrb.SelectionPanel(state="collapsed"),
     )
 
+
+def _tab_index(tabs: Sequence[rrb.Container], name: str | None) -> int | None:
+    """The index of the tab called ``name`` (rerun names only views, not containers, as tabs)."""
+    if name is None:
+        return None
+    names = [str(t.name) for t in tabs]
+    if name not in names:
+        raise ValueError(f"no tab {name!r} (the tabs: {', '.join(names)})")
+    return names.index(name)

@@ -66,7 +66,16 @@ PINK: RGB = (227, 119, 194)
 CYAN: RGB = (23, 190, 207)
 YELLOW: RGB = (230, 230, 70)
 TAN: RGB = (196, 156, 148)
-NEUTRAL: RGB = (200, 205, 215)       # a plot of one quantity (its title names it)
+# A plot of one quantity (its title names it) gets a bright colour of its own, none of the
+# colours above: in light grey (200, 205, 215) its curve read as one more grid line beside the
+# white time cursor, and every such plot looked the same
+SKY: RGB = (86, 180, 233)
+GOLD: RGB = (235, 185, 40)
+VIOLET: RGB = (175, 125, 255)
+TEAL: RGB = (40, 200, 165)
+ROSE: RGB = (245, 105, 150)
+# every series' line width (points): rerun's default, 0.75, was a hairline on a 1600-point window
+SERIES_WIDTH = 1.5
 # orange is always a firmware value and green the ground truth (joint measured/true, CoP firmware/
 # truth, velocities), in the plots and in the foot views beside them; no other series uses them
 POSITION_COLOURS: tuple[RGB, ...] = (GREY, BLUE, PURPLE, ORANGE, GREEN)   # POSITION_SERIES order
@@ -479,12 +488,12 @@ def _robot_columns() -> list[Column]:
                 truth.total_normal_force_n, t.twin.plant.tilt_deg)
 
     group = ColumnGroup(balance)
-    group.column(f"{ROBOT}/trunk_tilt_deg", ("trunk tilt",), "deg", (NEUTRAL,))
-    group.column(f"{ROBOT}/com_height_mm", ("CoM height",), "mm", (NEUTRAL,))
-    group.column(f"{ROBOT}/cop_margin_mm", ("CoP margin",), "mm", (NEUTRAL,), sparse=True)
+    group.column(f"{ROBOT}/trunk_tilt_deg", ("trunk tilt",), "deg", (SKY,))
+    group.column(f"{ROBOT}/com_height_mm", ("CoM height",), "mm", (GOLD,))
+    group.column(f"{ROBOT}/cop_margin_mm", ("CoP margin",), "mm", (VIOLET,), sparse=True)
     group.column(f"{ROBOT}/fell", ("fell",), "flag", (RED,))
-    group.column(f"{ROBOT}/total_force_n", ("total normal force",), "N", (NEUTRAL,))
-    group.column(f"{ROBOT}/platform_tilt_deg", ("platform tilt",), "deg", (NEUTRAL,))
+    group.column(f"{ROBOT}/total_force_n", ("total normal force",), "N", (TEAL,))
+    group.column(f"{ROBOT}/platform_tilt_deg", ("platform tilt",), "deg", (ROSE,))
     return group.columns
 
 
@@ -532,8 +541,8 @@ def _bus_columns(twin: Any) -> list[Column]:
                            ints=7)
     return [
         Column(f"{CAN}/frames", ("frames",), "count", lambda t: (net.frames_sent,), every=COUNTER_EVERY),
-        rates.column(f"{CAN}/frames_per_s", ("frames/s",), "1/s", (NEUTRAL,)),
-        rates.column(f"{CAN}/load_percent", ("bus load",), "%", (NEUTRAL,)),
+        rates.column(f"{CAN}/frames_per_s", ("frames/s",), "1/s", (SKY,)),
+        rates.column(f"{CAN}/load_percent", ("bus load",), "%", (GOLD,)),
         counters.column(f"{CAN}/error_frames", ("error frames",), "count", (RED,)),
         counters.column(f"{CAN}/frames_dropped", ("frames dropped",), "count", (TAN,)),
         counters.column(f"{CAN}/master_controller", ("state (0 active, 1 passive, 2 off)", "TEC", "REC"),

@@ -56,6 +56,7 @@ from humanoid_twin.recording.blueprint import default_blueprint, log_keys, log_p
 from humanoid_twin.recording.columns import (
     BLUE,
     RED,
+    SERIES_WIDTH,
     Column,
     ColumnGroup,
     Tick,
@@ -199,6 +200,7 @@ class Recorder:
         self.compact_s = 0.0          # wall time of the compaction at close (not in wall_s)
         self._t0_us = twin.clock.now_us
         self._n = 0
+        self._fell_logged = False
 
         self._layout((*_supervisor_columns(twin), *columns))
         self._alloc()
@@ -383,7 +385,7 @@ class Recorder:
             except TypeError:       # a user's column given lists (unhashable): an archetype of its own
                 key = style = None
             if style is None:
-                kw: dict[str, Any] = {"names": list(c.names)}
+                kw: dict[str, Any] = {"names": list(c.names), "widths": [SERIES_WIDTH] * len(c.names)}
                 if c.colors is not None:
                     kw["colors"] = list(c.colors)
                 style = rr.SeriesLines(**kw)
@@ -425,6 +427,8 @@ class Recorder:
                 raise RecorderError(f"cannot record this row's values: {exc}") from None
 
         truth = tick.truth
+        if truth.fell and not self._fell_logged:      # the first row that sees the robot fallen
+            self._log_fell(tick.now_us, truth)
         pos, quat = self._pose_dst
         npos, nquat = self._pose_len
         pos[i * npos:(i + 1) * npos], quat[i * nquat:(i + 1) * nquat] = self._pose_src
@@ -451,6 +455,12 @@ class Recorder:
         rec.set_time(TIMELINE, duration=np.timedelta64(int(t_us), "us"))
         rec.log(f"{SUPERVISOR}/events", rr.TextLog(str(text), level=level))
         rec.reset_time()
+
+    def _log_fell(self, t_us: int, truth: Any) -> None:
+        """The robot's fall as an event (once a recording): when, and how it lies."""
+        self._fell_logged = True
+        tilt, height_mm = truth.trunk_tilt_deg, truth.trunk_height_m * 1000
+        self.log_event(t_us, f"fell: trunk {tilt:.0f} deg, {height_mm:.0f} mm high", "ERROR")
 
     def _on_supervisor(self, kind: str, t_us: int, value: Any) -> None:
         """The Master supervisor's listener: every mode change and fault as an event."""
