@@ -366,7 +366,7 @@ def test_every_inline_command_of_the_docs_parses() -> None:
 def test_the_inline_check_finds_what_fails() -> None:
     where = Inline(ROOT / "README.md", 1, "")
     bad = {"humanoid-twin sweep stand --param pic-mhz=2,5,10,40": "--out",        # required
-           "humanoid-twin run stand --tilt 200": "--tilt",                         # its type refuses it
+           "humanoid-twin run stand --tilt abc": "--tilt",                         # its type refuses it
            "humanoid-twin run SCENARIO --no-such-flag": "unrecognized",
            "humanoid-twin run/frobnicate": "frobnicate",
            "humanoid-twin view --web": "file"}

@@ -349,7 +349,7 @@ def test_bad_options_are_one_line_exit_2(argv: list[str], said: str, plain: Path
 
 
 def test_one_simulated_day_bounds_a_log_a_run_and_a_fault_alike() -> None:
-    from humanoid_twin.cli.main import MAX_DURATION_S
     from humanoid_twin.faults import MAX_FAULT_S
+    from humanoid_twin.scenarios import MAX_DURATION_S
 
     assert MAX_LOG_S == MAX_DURATION_S == MAX_FAULT_S == 86_400
