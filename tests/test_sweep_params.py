@@ -108,3 +108,19 @@ def test_bad_sweep_input_is_one_line_exit_2_no_table(tmp_path: Path, args: list[
     r = sweep("stand", *args, "--out", "t.csv", cwd=tmp_path)
     assert r.returncode == 2 and message in r.stderr and r.stderr.count("\n") == 1, r.stderr
     assert not (tmp_path / "t.csv").exists()
+
+
+def test_a_parquet_folder_of_sweeps_over_different_robot_parameters_reads_back_whole(tmp_path: Path) -> None:
+    """Two sweeps over two different parameters, written into one folder: read as one table
+    (pandas, as docs/sweeps.md says), neither sweep's parameter column is lost."""
+    pd = pytest.importorskip("pandas")
+    (tmp_path / "sw").mkdir()
+    for param, out in (("servo.r_knee.kp=40", "sw/a.parquet"), ("floor.friction=0.7", "sw/b.parquet")):
+        r = sweep("stand", "--param", param, "--duration", "3", "--out", out, cwd=tmp_path)
+        assert r.returncode == 0, r.stderr
+    df = pd.read_parquet(tmp_path / "sw").sort_values("params_digest")
+    got = {(None if pd.isna(a) else a, None if pd.isna(b) else b)
+           for a, b in zip(df["servo.r_knee.kp"], df["floor.friction"], strict=True)}
+    assert got == {(40.0, None), (None, 0.7)}
+    assert sorted(df["params_servo.r_knee.kp"].dropna()) == [40.0]
+    assert sorted(df["params_floor.friction"].dropna()) == [0.7]

@@ -234,7 +234,9 @@ def known_columns(parser: argparse.ArgumentParser, params: dict[str, list[str]])
     """Every column a sweep table can have, and its kind where an option gives it: every run option
     a sweep can vary (this sweep's ``params`` first), ``seed``, every summary column
     (``humanoid_twin.summary.table_columns``), ``error`` (:func:`~humanoid_twin.sweep.engine.run_sweep`'s
-    ``known``: a Parquet table carries them all)."""
+    ``known``: a Parquet table carries them all), and every named parameter of the robot (a column
+    of its own when a sweep varies it, ``params_NAME`` when a run set it)."""
+    from humanoid_twin.params import registry
     from humanoid_twin.summary import table_columns
 
     run = parser.run_parser
@@ -243,8 +245,12 @@ def known_columns(parser: argparse.ArgumentParser, params: dict[str, list[str]])
                and a.nargs != 0}
     known: dict[str, str | None] = {name: options.get(name) for name in params}
     known.update({name: kind for name, kind in options.items() if name not in known and name != "seed"})
+    # every named parameter of the robot, as a --param column and as a run's params_NAME
+    names = registry().names()
+    known.update({name: "float" for name in names if name not in known})
     known["seed"] = "int"
     known.update({c: None for c in table_columns() if c not in known})
+    known.update({f"params_{name}": "float" for name in names})
     known["error"] = "string"
     return known
 
