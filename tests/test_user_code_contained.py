@@ -189,7 +189,7 @@ def test_a_sweep_keeps_runs_whose_code_prints_without_newline_and_leaves_a_threa
     import csv
 
     rows = list(csv.DictReader((user / "t.csv").open()))
-    assert [r["error"] for r in rows] == ["", ""] and [r["completed"] for r in rows] == ["True", "True"]
+    assert [r["error"] for r in rows] == ["", ""] and [r["completed"] for r in rows] == ["true", "true"]
     assert res.stdout == "t.csv: 2 runs, 0 failed\n"
 
 
