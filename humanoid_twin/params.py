@@ -128,8 +128,8 @@ class Registry:
             for name in names:
                 p = self._params[name]
                 if not p.min <= v <= p.max:
-                    raise ParamError(f"{name} = {value!r} is outside its bounds {p.min:g}..{p.max:g} {p.unit}"
-                                     .rstrip())
+                    unit = "" if p.unit == "1" else f" {p.unit}"     # "1": a plain ratio, no unit to say
+                    raise ParamError(f"{name} = {value!r} is outside its bounds {p.min:g}..{p.max:g}{unit}")
                 out.pop(name, None)
                 out[name] = v
         return out
