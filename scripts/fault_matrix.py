@@ -6,7 +6,7 @@ supervisor detected, how fast, the final mode, and whether the robot fell (docs/
 Each cell is one seeded ``humanoid-twin run`` through the API (the same as ``run SCENARIO --fault
 SPEC``); the fault starts at T0 = 3.0 s simulated (the boot ends at ~2.65 s). Latency = the first
 detected fault's time minus T0. Writes a markdown table into the scratch folder ``out/`` by
-default; ``--out docs/fault_matrix.md`` regenerates the committed copy. tests/test_docs.py checks
+default; ``--out docs/fault_matrix.md`` regenerates the committed copy. tests/project/test_docs.py checks
 that copy without the 48 runs: its text and its list of cells are this script's (``header``,
 ``jobs``), a sample of rows re-run now gives the same text (``cell``, ``row_line``), and every
 latency in it lies within what docs/supervisor.md states.
@@ -68,7 +68,7 @@ def jobs(seed: int) -> list[tuple[str, str | None, int]]:
 
 
 def header(seed: int, n_runs: int, wall_s: float) -> list[str]:
-    """The page's text above the rows (tests/test_docs.py checks it against docs/fault_matrix.md)."""
+    """The page's text above the rows (tests/project/test_docs.py checks it against docs/fault_matrix.md)."""
     return [
         "# Fault matrix",
         "",

@@ -10,7 +10,7 @@ Each block sits between ``<!-- generated: NAME -->`` and ``<!-- end generated: N
 - ``parameters`` in docs/parameters.md: every named parameter (``params.registry()``).
 
 docs/fault_matrix.md is the output of ``scripts/fault_matrix.py --seed 0 --out docs/fault_matrix.md``
-(48 runs; tests/test_docs.py checks its text and cells against the script, re-runs a sample of
+(48 runs; tests/project/test_docs.py checks its text and cells against the script, re-runs a sample of
 its rows and compares).
 """
 

@@ -13,7 +13,6 @@ import select
 import subprocess
 import sys
 import textwrap
-import time
 from collections.abc import Iterator
 from typing import Any
 
@@ -38,32 +37,6 @@ def booted_twin() -> Iterator[tuple[Twin, Any]]:
     of its RS-232 link; closed after the test."""
     with Rig(RigOptions(seed=0, monitor=False)) as rig:
         yield rig.twin, rig.boot()
-
-
-# The head of a plain pyserial client, a user's own program that uses no project code: its imports
-# and the RS-232 frame of docs/protocol.md written out by hand (start byte, OpCode, three data
-# bytes, the XOR of all five). A test adds its port and its requests below it.
-PYSERIAL_FRAME = """
-import json, sys, time
-import serial
-
-
-def frame(op, scu, param, d1=0, d2=0, d3=0):
-    b = [0xFF, (op << 6) | (scu << 2) | param, d1 & 0xFF, d2 & 0xFF, d3 & 0xFF]
-    x = 0
-    for v in b:
-        x ^= v
-    return bytes(b + [x])
-"""
-
-
-def wait_for_mode(robot: Any, mode_name: str, timeout_s: float) -> str:
-    """Poll a :class:`~humanoid_twin.host.drivers.HumanoidClient` every 50 ms until its Master's
-    supervisor reports ``mode_name`` or ``timeout_s`` wall seconds pass; the mode it reported last."""
-    deadline = time.monotonic() + timeout_s
-    while (name := robot.supervisor().mode_name) != mode_name and time.monotonic() < deadline:
-        time.sleep(0.05)
-    return name
 
 
 class ServeStarter:
