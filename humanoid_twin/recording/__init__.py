@@ -12,6 +12,8 @@
 What is recorded where: docs/recording.md.
 """
 
+from typing import TYPE_CHECKING, Any
+
 from humanoid_twin.recording.can_log import (
     CanLog,
     CanLogError,
@@ -28,13 +30,27 @@ from humanoid_twin.recording.readback import (
     rrd_has_blueprint,
     verify_rrd,
 )
-from humanoid_twin.recording.rerun_recorder import (
-    SHORT_RECORDING_S,
-    TIMELINE,
-    Recorder,
-    RecorderError,
-    compact_for,
-)
+
+if TYPE_CHECKING:
+    from humanoid_twin.recording.rerun_recorder import (
+        SHORT_RECORDING_S,
+        TIMELINE,
+        Recorder,
+        RecorderError,
+        compact_for,
+    )
+
+# The recorder's names come from rerun_recorder on first use: importing it imports rerun and
+# pyarrow (about a second of CPU), which a CAN log, a read-back or a path table does not need.
+_RECORDER_NAMES = frozenset({"SHORT_RECORDING_S", "TIMELINE", "Recorder", "RecorderError", "compact_for"})
+
+
+def __getattr__(name: str) -> Any:
+    if name in _RECORDER_NAMES:
+        from humanoid_twin.recording import rerun_recorder
+
+        return getattr(rerun_recorder, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 __all__ = [
     "Recorder",

@@ -8,13 +8,13 @@ from helpers import REPO
 
 pytestmark = pytest.mark.slow       # subprocess-heavy: skipped by `pytest -m "not slow"` (README)
 
-nbformat = pytest.importorskip("nbformat")
-nbclient = pytest.importorskip("nbclient")
-
 NOTEBOOK = REPO / "examples" / "read_recording.ipynb"
 
 
 def test_read_recording_notebook_executes(tmp_path):
+    # imported here, not at collection (jupyter's client costs a quarter second to import)
+    nbformat = pytest.importorskip("nbformat")
+    nbclient = pytest.importorskip("nbclient")
     nb = nbformat.read(NOTEBOOK, as_version=4)
     nbclient.NotebookClient(nb, timeout=180, kernel_name="python3",
                             resources={"metadata": {"path": str(tmp_path)}}).execute()

@@ -14,13 +14,13 @@ import can
 import numpy as np
 import pytest
 
+from humanoid_twin import recording
 from humanoid_twin.hardware import N_SERVOS
 from humanoid_twin.protocol import canframes, rs232
 from humanoid_twin.protocol.wire import N_SCU
 from humanoid_twin.recording import (
     CanLog,
     CanLogError,
-    Recorder,
     RrdReadError,
     check_log_path,
     decode_can_log,
@@ -73,7 +73,7 @@ def run(tmp_path_factory):
     d = tmp_path_factory.mktemp("rec")
     rrd, asc = d / "run.rrd", d / "run.asc"
     with Twin(seed=0) as twin:
-        with Recorder(rrd, twin, chunk_s=2.0) as rec, CanLog(asc, twin.network) as log:
+        with recording.Recorder(rrd, twin, chunk_s=2.0) as rec, CanLog(asc, twin.network) as log:
             _drive(twin)
             facts = {
                 "knee_true": [twin.plant.servo_angle_deg(scu, 2) for scu in (1, 2)],
@@ -132,7 +132,7 @@ def test_extra_columns_are_recorded_and_slow_ones_read_only_on_their_rows(tmp_pa
              Column("user/slow", ("calls", "minus one"), "count", slow, every=5),
              batch.column("user/since", ("ms since",), "ms")]
     rrd = tmp_path / "extra.rrd"
-    with Twin(seed=0) as twin, Recorder(rrd, twin, columns=extra, chunk_s=0.3) as rec:
+    with Twin(seed=0) as twin, recording.Recorder(rrd, twin, columns=extra, chunk_s=0.3) as rec:
         twin.advance_to(1_000_000)
     assert rec.samples == 51                            # 0, 20 ms, ..., 1 s
     assert len(fast_calls) == 51
@@ -158,7 +158,7 @@ def test_a_batch_group_split_in_the_column_list_is_refused(tmp_path):
     other = Column("user/other", ("x",), "us", lambda t: (1.0,))
     with Twin(seed=0) as twin:
         with pytest.raises(ValueError, match="must be given together"):
-            Recorder(tmp_path / "split.rrd", twin, columns=[a, other, b])
+            recording.Recorder(tmp_path / "split.rrd", twin, columns=[a, other, b])
     assert not (tmp_path / "split.rrd").exists()
 
 
@@ -174,7 +174,7 @@ def test_a_column_group_is_read_once_a_row_and_each_column_alone_reads_its_slice
     b = group.column("user/b", ("one", "two"), "count")
     c = group.column("user/c", ("minus t ms",), "ms")
     rrd = tmp_path / "group.rrd"
-    with Twin(seed=0) as twin, Recorder(rrd, twin, columns=group.columns, chunk_s=0.3) as rec:
+    with Twin(seed=0) as twin, recording.Recorder(rrd, twin, columns=group.columns, chunk_s=0.3) as rec:
         twin.advance_to(200_000)
         tick = rec._tick
         assert list(b.read(tick)) == [1.0, 2.0] and list(c.read(tick)) == [-200.0]
@@ -196,7 +196,7 @@ def test_support_polygon_strips_of_every_size(tmp_path):
     rrd = tmp_path / "poly.rrd"
     hulls = [np.zeros((0, 2)), np.array([[0.1, 0.0]]), np.array([[0.0, 0.0], [0.1, 0.0]]),
              np.array([[0.0, 0.0], [0.1, 0.0], [0.1, 0.05], [0.0, 0.05]])]
-    with Twin(seed=0) as twin, Recorder(rrd, twin, chunk_s=10.0) as rec:
+    with Twin(seed=0) as twin, recording.Recorder(rrd, twin, chunk_s=10.0) as rec:
         twin.advance_to(60_000)                         # rows at 0, 20, 40, 60 ms
         assert rec._n == 4
         rec._poly[:4] = hulls
@@ -273,7 +273,7 @@ def test_the_content_does_not_depend_on_where_the_chunks_cut(tmp_path):
     digests = []
     for chunk_s in (0.14, 30.0):
         rrd = tmp_path / f"chunks{chunk_s}.rrd"
-        with Twin(seed=0) as twin, Recorder(rrd, twin, chunk_s=chunk_s) as rec:
+        with Twin(seed=0) as twin, recording.Recorder(rrd, twin, chunk_s=chunk_s) as rec:
             twin.advance_to(1_000_000)
         digests.append(_content_digest(rrd))
         assert rec.chunks_sent == (8 if chunk_s < 1 else 1)     # 51 rows
@@ -284,7 +284,7 @@ def test_a_user_column_may_give_its_names_and_colours_as_lists(tmp_path):
     """Lists where the table has tuples (a user's column): recorded like the others."""
     col = Column("user/listed", ["a", "b"], "u", lambda t: (1.0, 2.0), colors=[[255, 0, 0], [0, 255, 0]])
     rrd = tmp_path / "listed.rrd"
-    with Twin(seed=0) as twin, Recorder(rrd, twin, columns=[col], chunk_s=0.3):
+    with Twin(seed=0) as twin, recording.Recorder(rrd, twin, columns=[col], chunk_s=0.3):
         twin.advance_to(100_000)
     t, v = read_rrd_scalars(rrd, "user/listed")
     assert len(t) == 6 and v.tolist() == [[1.0, 2.0]] * 6
@@ -439,7 +439,7 @@ def test_interrupted_run_leaves_a_readable_file(tmp_path):
     path = tmp_path / "interrupted.rrd"
     with Twin(seed=1) as twin:
         with pytest.raises(RuntimeError, match="boom"):
-            with Recorder(path, twin, chunk_s=0.2) as rec:
+            with recording.Recorder(path, twin, chunk_s=0.2) as rec:
                 twin.run_for(0.5)
                 raise RuntimeError("boom")
         assert rec.closed
@@ -458,7 +458,7 @@ def test_ctrl_c_inside_the_clock_leaves_a_readable_file(tmp_path):
 
     with Twin(seed=2) as twin:
         with pytest.raises(KeyboardInterrupt):
-            with Recorder(path, twin) as rec:
+            with recording.Recorder(path, twin) as rec:
                 twin.clock.schedule(310_000, interrupt)
                 twin.run_for(1.0)
     t, _ = read_rrd_scalars(path, "scu/1_right_leg/servo1/position")
@@ -501,28 +501,28 @@ def test_real_ctrl_c_and_forgotten_close_leave_readable_files(tmp_path):
 
 def test_recorder_rejects_bad_input(tmp_path, twin):
     with pytest.raises(ValueError, match=r"\.rrd"):
-        Recorder(tmp_path / "run.txt", twin)
+        recording.Recorder(tmp_path / "run.txt", twin)
     with pytest.raises(FileNotFoundError, match="does not exist"):
-        Recorder(tmp_path / "missing" / "run.rrd", twin)
+        recording.Recorder(tmp_path / "missing" / "run.rrd", twin)
     with pytest.raises(ValueError, match="period_us"):
-        Recorder(tmp_path / "run.rrd", twin, period_us=0)
+        recording.Recorder(tmp_path / "run.rrd", twin, period_us=0)
     with pytest.raises(ValueError, match="SCU 9"):
-        Recorder(tmp_path / "run.rrd", twin, scus=[1, 9])
+        recording.Recorder(tmp_path / "run.rrd", twin, scus=[1, 9])
     with pytest.raises(ValueError, match="chunk_s"):
-        Recorder(tmp_path / "run.rrd", twin, chunk_s=float("nan"))
+        recording.Recorder(tmp_path / "run.rrd", twin, chunk_s=float("nan"))
     with pytest.raises(ValueError, match="smaller chunk_s"):
-        Recorder(tmp_path / "run.rrd", twin, chunk_s=3600)
+        recording.Recorder(tmp_path / "run.rrd", twin, chunk_s=3600)
     assert not (tmp_path / "run.rrd").exists()      # nothing created by a refused recorder
 
 
 def test_the_default_chunk_fits_a_short_sampling_period(tmp_path, twin):
     """The default chunk is 30 simulated s, or the most rows a chunk may hold at a short period
     (a 2 ms period would need 15 000 rows for 30 s; an explicit chunk_s that long is refused)."""
-    with Recorder(tmp_path / "fast.rrd", twin, period_us=2_000) as rec:
+    with recording.Recorder(tmp_path / "fast.rrd", twin, period_us=2_000) as rec:
         twin.run_for(0.1)
     assert rec.samples >= 50
     with pytest.raises(ValueError, match="smaller chunk_s"):
-        Recorder(tmp_path / "slow.rrd", twin, period_us=2_000, chunk_s=30.0)
+        recording.Recorder(tmp_path / "slow.rrd", twin, period_us=2_000, chunk_s=30.0)
     with pytest.raises(FileNotFoundError):
         read_rrd_entities(tmp_path / "nothing.rrd")
     junk = tmp_path / "junk.rrd"
@@ -533,7 +533,7 @@ def test_the_default_chunk_fits_a_short_sampling_period(tmp_path, twin):
 
 def test_recorder_subset_of_boards(tmp_path):
     path = tmp_path / "legs.rrd"
-    with Twin(seed=0) as twin, Recorder(path, twin, scus=(1, 2), period_us=40_000) as rec:
+    with Twin(seed=0) as twin, recording.Recorder(path, twin, scus=(1, 2), period_us=40_000) as rec:
         twin.run_for(0.4)
     rows = read_rrd_rows(path)
     assert rows["scu/1_right_leg/servo1/position"] == 11 == rec.samples

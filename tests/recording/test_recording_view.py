@@ -11,17 +11,17 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from rerun.chunk import RrdReader
 
 import humanoid_twin
 from humanoid_twin.protocol.wire import SCUS
-from humanoid_twin.recording import blueprint
 from humanoid_twin.recording.columns import twin_columns
 from humanoid_twin.recording.paths import CAN, ROBOT, SUPERVISOR
 
 
 def _events(path: Path) -> list[tuple[float, str, str]]:
     """``(t_s, level, text)`` of every event line of a recording, in time order."""
+    from rerun.chunk import RrdReader
+
     out = []
     for c in RrdReader(path).stream():
         if c.entity_path.lstrip("/") != f"{SUPERVISOR}/events":
@@ -51,6 +51,8 @@ def test_a_fall_is_a_line_of_the_event_log_at_its_instant(tmp_path: Path) -> Non
     assert fell_at is not None, "the shove did not topple the robot"
     # the default 3D eye still has the fallen robot in view: every body within 25 deg of its axis
     # (rerun's 3D view opens with a vertical field of view of ~55 deg)
+    from humanoid_twin.recording import blueprint
+
     eye, target = np.array(blueprint.EYE_POSITION), np.array(blueprint.EYE_TARGET)
     axis = (target - eye) / np.linalg.norm(target - eye)
     rays = bodies - eye
