@@ -1,6 +1,6 @@
 """What several test files share that is not a fixture (the fixtures are in tests/conftest.py):
-the repository's root, the command line in a child process, the head of a plain pyserial client,
-and a wait on the Master's supervisor.
+the repository's root, the command line in a child process (and its signals), the head of a plain
+pyserial client, and a wait on the Master's supervisor.
 
 The test files sit in folders by what they test (tests/protocol, tests/bus, tests/firmware, ...);
 pytest puts ``tests/`` on ``sys.path`` for its root conftest.py, so every test file imports this
@@ -9,6 +9,7 @@ module as ``helpers``."""
 from __future__ import annotations
 
 import os
+import signal
 import subprocess
 import sys
 import time
@@ -24,7 +25,15 @@ CLI = [sys.executable, "-m", "humanoid_twin.cli.main"]
 ``PYTHONPATH`` points at)."""
 
 
-def cli(*args: str, cwd: str | Path | None = None, timeout: float = 120,
+def default_signals() -> None:
+    """A child's ``preexec_fn``: SIGINT and SIGTERM back to their default actions, so that a test
+    that signals a child does not depend on how pytest itself was started (a background job
+    ignores SIGINT, and its children inherit that)."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+
+
+def cli(*args: str, cwd: str | Path | None = None, timeout: float = 300,
         env: Mapping[str, str] | None = None,
         preexec_fn: Callable[[], Any] | None = None) -> subprocess.CompletedProcess:
     """``humanoid-twin ARGS`` in a child process (in ``cwd``; ``env`` added to this process's

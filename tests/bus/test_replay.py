@@ -10,20 +10,18 @@ import json
 import math
 import os
 import subprocess
-import sys
 import textwrap
 import time
 from pathlib import Path
 
 import pytest
+from helpers import CLI
 
 from humanoid_twin.bus.serial_log import MAX_LOG_S, read_log
 from humanoid_twin.cli.main import main
 from humanoid_twin.faults import KINDS, parse_fault
 from humanoid_twin.replay import replay
 from humanoid_twin.scenarios import RunOptions, run
-
-CLI = [sys.executable, "-m", "humanoid_twin.cli.main"]
 
 # one fault of each kind, from the boot on or while the host still talks (flexao's motion)
 FAULT_OF_KIND = {

@@ -4,18 +4,12 @@ from __future__ import annotations
 
 import json
 import os
-import subprocess
-import sys
 
 import pytest
+from helpers import cli
 
-EXE = [sys.executable, "-m", "humanoid_twin.cli.main"]
 SUMMARY_KEYS = {"scenario", "duration_s", "fell", "trunk_tilt_max_deg", "cop_margin_min_mm",
                 "cop_error_rms_mm", "wall_s", "rtf", "can_frames", "serial_frames"}
-
-
-def cli(*args: str, timeout: float = 120, cwd: str | None = None) -> subprocess.CompletedProcess:
-    return subprocess.run([*EXE, *args], capture_output=True, text=True, timeout=timeout, cwd=cwd)
 
 
 @pytest.mark.parametrize("cmd", [[], ["run"], ["serve"], ["view"]])

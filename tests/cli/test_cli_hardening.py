@@ -8,24 +8,18 @@ import resource
 import signal
 import socket
 import subprocess
-import sys
 import time
 
 import pytest
+from helpers import CLI, default_signals
 
 from humanoid_twin.recording import read_can_log, verify_rrd
 
-EXE = [sys.executable, "-m", "humanoid_twin.cli.main"]
 OLD = b"an older recording the user wants to keep"
 
 
-def _default_signals() -> None:
-    signal.signal(signal.SIGINT, signal.SIG_DFL)
-    signal.signal(signal.SIGTERM, signal.SIG_DFL)
-
-
-def cli(*args: str, cwd, timeout: float = 120, preexec=_default_signals) -> subprocess.CompletedProcess:
-    return subprocess.run([*EXE, *args], capture_output=True, text=True, timeout=timeout, cwd=cwd,
+def cli(*args: str, cwd, timeout: float = 120, preexec=default_signals) -> subprocess.CompletedProcess:
+    return subprocess.run([*CLI, *args], capture_output=True, text=True, timeout=timeout, cwd=cwd,
                           preexec_fn=preexec)
 
 
@@ -106,9 +100,9 @@ def test_a_successful_run_replaces_the_old_file(tmp_path):
                          ids=["SIGTERM", "SIGINT"])
 def test_signal_mid_run_closes_the_recording_and_the_can_log(sig, code, tmp_path):
     args = ["run", "stand", "--duration", "600", "--out", "s.rrd", "--can-log", "s.asc"]
-    proc = subprocess.Popen([*EXE, *args], cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+    proc = subprocess.Popen([*CLI, *args], cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                             text=True,
-                            preexec_fn=_default_signals)
+                            preexec_fn=default_signals)
     try:
         line = "x"
         while "booted by" not in line:           # the progress line: the run is under way
@@ -133,7 +127,7 @@ def test_disk_full_mid_run_is_one_line_and_the_old_file_survives(tmp_path):
     old.write_bytes(OLD)
 
     def limited() -> None:
-        _default_signals()
+        default_signals()
         signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
         resource.setrlimit(resource.RLIMIT_FSIZE, (1_000_000, 1_000_000))
 

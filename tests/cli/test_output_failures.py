@@ -18,24 +18,20 @@ import time
 from pathlib import Path
 
 import pytest
+from helpers import CLI, default_signals
 
+from humanoid_twin import recording
 from humanoid_twin.cli import main as cli
-from humanoid_twin.recording import Recorder, read_rrd_rows, verify_rrd
+from humanoid_twin.recording import read_rrd_rows, verify_rrd
 from humanoid_twin.twin import Twin
 
 pytestmark = pytest.mark.slow       # subprocess-heavy: skipped by `pytest -m "not slow"` (README)
 
-CLI = [sys.executable, "-m", "humanoid_twin.cli.main"]
-
-
-def _default_signals() -> None:
-    signal.signal(signal.SIGINT, signal.SIG_DFL)
-    signal.signal(signal.SIGTERM, signal.SIG_DFL)
 
 
 def _fsize_limit(limit: int):
     def setup() -> None:
-        _default_signals()
+        default_signals()
         signal.signal(signal.SIGXFSZ, signal.SIG_IGN)     # the write fails with EFBIG instead
         resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
     return setup
@@ -87,7 +83,7 @@ def test_a_failed_compaction_keeps_the_readable_recording(tmp_path: Path, monkey
     fake.chmod(0o755)
     path = tmp_path / "long.rrd"
     with Twin(seed=0) as twin:
-        rec = Recorder(path, twin, compact=True)
+        rec = recording.Recorder(path, twin, compact=True)
         twin.run_for(1.0)
         monkeypatch.setenv("RERUN_CLI_PATH", str(fake))
         rec.close()
@@ -134,7 +130,7 @@ def test_sigterm_during_the_compaction_keeps_a_verified_recording_and_exits_143(
     path = tmp_path / "long.rrd"
     env = {**os.environ, "RERUN_CLI_PATH": str(fake)}
     proc = subprocess.Popen([sys.executable, "-c", _COMPACT_CHILD, str(path)], stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True, env=env, preexec_fn=_default_signals)
+                            stderr=subprocess.PIPE, text=True, env=env, preexec_fn=default_signals)
     try:
         deadline = time.monotonic() + 60
         while not marker.exists() and time.monotonic() < deadline and proc.poll() is None:
@@ -167,7 +163,7 @@ def test_a_signal_at_any_early_instant_is_one_line_and_leaves_no_temporary_file(
     out = tmp_path / "x.rrd"
     proc = subprocess.Popen([*CLI, "run", "stand", "--duration", "3", "--no-progress", "--out", str(out),
                              "--can-log", str(tmp_path / "x.asc")], stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True, preexec_fn=_default_signals)
+                            stderr=subprocess.PIPE, text=True, preexec_fn=default_signals)
     time.sleep(delay)
     proc.send_signal(sig)
     _, err = proc.communicate(timeout=60)
@@ -184,7 +180,7 @@ def test_sigterm_while_a_slow_law_module_imports_leaves_no_temporary_file(tmp_pa
     (tmp_path / "slowlaw.py").write_text("import time\ntime.sleep(30)\n")
     proc = subprocess.Popen([*CLI, "run", "stand", "--duration", "3", "--law", "balance=slowlaw:Law",
                              "--out", "x.rrd"], cwd=tmp_path, stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True, preexec_fn=_default_signals,
+                            stderr=subprocess.PIPE, text=True, preexec_fn=default_signals,
                             env={**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)})
     time.sleep(1.5)
     proc.send_signal(signal.SIGTERM)

@@ -5,20 +5,14 @@ from __future__ import annotations
 
 import signal
 import subprocess
-import sys
 import time
 from pathlib import Path
 
 import pytest
+from helpers import CLI, default_signals
 
 pytestmark = pytest.mark.slow       # subprocess-heavy: skipped by `pytest -m "not slow"` (README)
 
-CLI = [sys.executable, "-m", "humanoid_twin.cli.main"]
-
-
-def _default_signals() -> None:
-    signal.signal(signal.SIGINT, signal.SIG_DFL)
-    signal.signal(signal.SIGTERM, signal.SIG_DFL)
 
 
 @pytest.mark.parametrize("sig,code", [(signal.SIGINT, 130), (signal.SIGTERM, 143)])
@@ -37,7 +31,7 @@ def test_view_web_exits_143_on_sigterm(tmp_path: Path) -> None:
     assert res.returncode == 0, res.stderr
     proc = subprocess.Popen([*CLI, "view", "--web", "--port", "19391", str(rrd)],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                            preexec_fn=_default_signals)
+                            preexec_fn=default_signals)
     try:
         assert "rerun web viewer: http://127.0.0.1:19391" in proc.stdout.readline()
         time.sleep(1.0)

@@ -10,15 +10,9 @@ import sys
 from pathlib import Path
 
 import pytest
-from helpers import REPO
+from helpers import REPO, cli
 
 from humanoid_twin.scenarios import SUMMARY_KEYS, outcome
-
-EXE = [sys.executable, "-m", "humanoid_twin.cli.main"]
-
-
-def cli(*args: str, cwd: Path | None = None) -> subprocess.CompletedProcess:
-    return subprocess.run([*EXE, *args], capture_output=True, text=True, timeout=180, cwd=cwd)
 
 
 @pytest.fixture(scope="module")

@@ -11,17 +11,11 @@
 from __future__ import annotations
 
 import json
-import subprocess
-import sys
 from pathlib import Path
 
+from helpers import cli
+
 from humanoid_twin.monitor import CONTROLLERS_START_S
-
-EXE = [sys.executable, "-m", "humanoid_twin.cli.main"]
-
-
-def cli(*args: str, cwd: Path) -> subprocess.CompletedProcess:
-    return subprocess.run([*EXE, *args], capture_output=True, text=True, timeout=300, cwd=cwd)
 
 
 def test_each_extreme_says_when_and_the_motion_leaves_the_start_up_out(tmp_path: Path) -> None:

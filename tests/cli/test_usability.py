@@ -13,15 +13,10 @@ import sys
 import termios
 
 import pytest
+from helpers import CLI, cli
 
 from humanoid_twin.cli.progress import RunProgress
 from humanoid_twin.scenarios import DEFAULT_MOTION_DEG, SCENARIOS
-
-EXE = [sys.executable, "-m", "humanoid_twin.cli.main"]
-
-
-def cli(*args: str, cwd: str | None = None) -> subprocess.CompletedProcess:
-    return subprocess.run([*EXE, *args], capture_output=True, text=True, timeout=120, cwd=cwd)
 
 
 def test_version():
@@ -98,7 +93,7 @@ def test_mujoco_warnings_go_to_stderr_not_to_a_log_file_in_the_cwd(tmp_path):
 
 def test_run_viewer_without_a_display_is_one_line_and_exit_2_before_anything_is_written(tmp_path):
     env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY")}
-    r = subprocess.run([*EXE, "run", "stand", "--viewer"], capture_output=True, text=True, timeout=60,
+    r = subprocess.run([*CLI, "run", "stand", "--viewer"], capture_output=True, text=True, timeout=60,
                        cwd=tmp_path, env=env)
     assert r.returncode == 2
     assert r.stderr.count("\n") == 1 and "--viewer needs a display" in r.stderr
@@ -107,7 +102,7 @@ def test_run_viewer_without_a_display_is_one_line_and_exit_2_before_anything_is_
 
 @pytest.mark.skipif(shutil.which("xvfb-run") is None, reason="needs xvfb-run (a virtual X display)")
 def test_run_viewer_watches_the_run_paced_to_real_time_on_a_virtual_display(tmp_path):
-    r = subprocess.run(["xvfb-run", "-a", *EXE, "run", "stand", "--duration", "3", "--viewer", "--no-record",
+    r = subprocess.run(["xvfb-run", "-a", *CLI, "run", "stand", "--duration", "3", "--viewer", "--no-record",
                         "--json", "--no-progress"], capture_output=True, text=True, timeout=120, cwd=tmp_path)
     assert r.returncode == 0, r.stderr          # the window opened, the run ended, the viewer closed
     summary = json.loads(r.stdout.splitlines()[-1])

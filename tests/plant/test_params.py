@@ -15,6 +15,7 @@ from pathlib import Path
 import mujoco
 import numpy as np
 import pytest
+from helpers import cli
 
 from humanoid_twin.cycles import DEFAULT_PIC_MHZ
 from humanoid_twin.params import (
@@ -29,14 +30,9 @@ from humanoid_twin.params import (
 from humanoid_twin.plant.plant import MODELS, Plant, model_assets
 from humanoid_twin.twin import Twin
 
-EXE = [sys.executable, "-m", "humanoid_twin.cli.main"]
 SPEC_NAMES = ("servo.r_knee.kp", "servo.r_knee.damping", "servo.r_knee.frictionloss", "servo.r_knee.armature",
               "servo.r_knee.torque_max", "pot.r_knee.offset_deg", "fsr.l_foot_rr.gain",
               "fsr.l_foot_rr.offset_counts", "floor.friction", "body.trunk.mass_scale", "pic_mhz")
-
-
-def cli(*args: str, cwd: Path | None = None, timeout: float = 180) -> subprocess.CompletedProcess:
-    return subprocess.run([*EXE, *args], capture_output=True, text=True, timeout=timeout, cwd=cwd)
 
 
 def _plain_model() -> mujoco.MjModel:

@@ -12,15 +12,11 @@ import sys
 
 import numpy as np
 import pytest
+from helpers import default_signals
 
-from humanoid_twin.recording import Recorder, read_rrd_scalars, verify_rrd
+from humanoid_twin import recording
+from humanoid_twin.recording import read_rrd_scalars, verify_rrd
 from humanoid_twin.twin import Twin
-
-
-def _default_signals() -> None:
-    signal.signal(signal.SIGINT, signal.SIG_DFL)
-    signal.signal(signal.SIGTERM, signal.SIG_DFL)
-
 
 _PRELUDE = (
     "import os, signal, sys\n"
@@ -44,7 +40,7 @@ _TERM_EXITS = "signal.signal(signal.SIGTERM, lambda s, f: sys.exit(143))\n"
 def _run_and_signal(path, setup: str, sig: int) -> subprocess.CompletedProcess:
     proc = subprocess.Popen([sys.executable, "-c", _PRELUDE + setup + _LOOP, str(path)],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                            preexec_fn=_default_signals)
+                            preexec_fn=default_signals)
     try:
         assert proc.stdout.readline().strip() == "ready"
         proc.send_signal(sig)
@@ -74,7 +70,8 @@ def test_exception_inside_the_run_leaves_a_file_rerun_verifies(tmp_path):
     def boom() -> None:
         raise RuntimeError("boom")
 
-    with pytest.raises(RuntimeError, match="boom"), Twin(seed=0) as twin, Recorder(path, twin, chunk_s=0.5):
+    with (pytest.raises(RuntimeError, match="boom"), Twin(seed=0) as twin,
+          recording.Recorder(path, twin, chunk_s=0.5)):
         twin.clock.schedule(730_000, boom)
         twin.run_for(2.0)
     verify_rrd(path)
@@ -85,7 +82,7 @@ def test_exception_inside_the_run_leaves_a_file_rerun_verifies(tmp_path):
 def test_close_is_idempotent_and_sampling_after_close_is_ignored(tmp_path):
     path = tmp_path / "c.rrd"
     with Twin(seed=0) as twin:
-        rec = Recorder(path, twin)
+        rec = recording.Recorder(path, twin)
         twin.run_for(0.1)
         rec.close()
         rec.close()
@@ -100,7 +97,7 @@ def test_supervisor_hook_records_mode_and_events(tmp_path):
     from humanoid_twin.recording import read_rrd_rows
 
     path = tmp_path / "sup.rrd"
-    with Twin(seed=0) as twin, Recorder(path, twin) as rec:
+    with Twin(seed=0) as twin, recording.Recorder(path, twin) as rec:
         twin.run_for(0.2)
         rec.log_event(twin.clock.now_us, "operator note", "WARN")
         twin.run_for(0.1)
@@ -125,7 +122,7 @@ def test_recording_is_compacted_at_close(tmp_path):
     sizes = {}
     for compact in (False, True):
         path = tmp_path / f"c{compact}.rrd"
-        with Twin(seed=0) as twin, Recorder(path, twin, chunk_s=0.2, compact=compact) as rec:
+        with Twin(seed=0) as twin, recording.Recorder(path, twin, chunk_s=0.2, compact=compact) as rec:
             twin.run_for(1.0)
         verify_rrd(path)
         per = chunks_per_entity(path)
@@ -150,7 +147,7 @@ def test_memory_stays_flat_over_a_long_recording(tmp_path):
     visible): RSS after the first 15 s stays within 3 MB (rerun's in-memory footer index grew
     ~0.5 MB per simulated second here before the file was streamed without it)."""
     path = tmp_path / "long.rrd"
-    with Twin(seed=0) as twin, Recorder(path, twin, chunk_s=0.5) as rec:
+    with Twin(seed=0) as twin, recording.Recorder(path, twin, chunk_s=0.5) as rec:
         twin.run_for(15.0)
         base = _rss_mb()
         peak = base

@@ -6,17 +6,16 @@ from __future__ import annotations
 
 import signal
 import subprocess
-import sys
 
 import can
 import pytest
+from helpers import CLI
 
 from humanoid_twin.recording.readback import read_rrd_rows, verify_rrd
 from humanoid_twin.rig import Rig, RigOptions, boot
 
 pytestmark = pytest.mark.slow       # subprocess-heavy: skipped by `pytest -m "not slow"` (README)
 
-CLI = [sys.executable, "-m", "humanoid_twin.cli.main"]
 
 BOOT_CLIENT = """
 import json, sys

@@ -17,7 +17,7 @@ from pathlib import Path
 
 import can
 import pytest
-from helpers import PYSERIAL_FRAME
+from helpers import CLI, PYSERIAL_FRAME
 
 from humanoid_twin.bus.serial_log import TAP_TO_DEVICE, TAP_TO_HOST, read_log
 from humanoid_twin.protocol.rs232 import FrameError, decode_response
@@ -25,7 +25,6 @@ from humanoid_twin.recording.readback import read_rrd_rows, rerun_executable, ve
 
 pytestmark = pytest.mark.slow       # subprocess-heavy: skipped by `pytest -m "not slow"` (README)
 
-CLI = [sys.executable, "-m", "humanoid_twin.cli.main"]
 REPLAY = [sys.executable, "-m", "humanoid_twin.bus.serial_log", "replay"]
 
 # a plain pyserial client on serve's TCP port: the Master's TEST, then the head board (SCU 8):

@@ -7,20 +7,17 @@ from __future__ import annotations
 
 import csv
 import subprocess
-import sys
 from pathlib import Path
 
 import pytest
-from helpers import REPO
+from helpers import CLI, REPO
 
 from humanoid_twin.params import params_digest, registry
 from humanoid_twin.sweep.params import draw_samples, parse_randomize
 
-EXE = [sys.executable, "-m", "humanoid_twin.cli.main"]
-
 
 def sweep(*args: str, cwd: Path) -> subprocess.CompletedProcess:
-    return subprocess.run([*EXE, "sweep", *args, "--no-progress"], capture_output=True, text=True,
+    return subprocess.run([*CLI, "sweep", *args, "--no-progress"], capture_output=True, text=True,
                           timeout=600, cwd=cwd)
 
 

@@ -9,16 +9,14 @@ combination and odd spellings are one line and exit 2, ``injected`` lists the fa
 from __future__ import annotations
 
 import subprocess
-import sys
 
 import pytest
+from helpers import CLI
 
 from humanoid_twin.fault_compose import combine_probability, effective
 from humanoid_twin.faults import FaultInjector, FaultSpecError, parse_fault
 from humanoid_twin.scenarios import RunOptions, run
 from humanoid_twin.twin import Twin
-
-CLI = [sys.executable, "-m", "humanoid_twin.cli.main"]
 
 
 # --- point 3: falls during the boot -------------------------------------------------------------

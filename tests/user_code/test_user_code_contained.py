@@ -13,16 +13,15 @@ import os
 import signal
 import socket
 import subprocess
-import sys
 import threading
 import time
 from pathlib import Path
 
 import pytest
+from helpers import CLI, default_signals
 
 pytestmark = pytest.mark.slow       # subprocess-heavy: skipped by `pytest -m "not slow"` (README)
 
-CLI = [sys.executable, "-m", "humanoid_twin.cli.main"]
 GRACE_S = 2.0               # humanoid_twin/signals.GRACE_S, as a user measures it (from outside)
 SLACK_S = 3.0               # a loaded machine: the process's own closing, the interpreter's exit
 
@@ -138,11 +137,6 @@ class Loop(ControlLaw):
 '''
 
 
-def _default_signals() -> None:
-    signal.signal(signal.SIGINT, signal.SIG_DFL)
-    signal.signal(signal.SIGTERM, signal.SIG_DFL)
-
-
 @pytest.fixture
 def user(tmp_path: Path) -> Path:
     (tmp_path / "hostile.py").write_text(SCENARIOS)
@@ -153,7 +147,7 @@ def user(tmp_path: Path) -> Path:
 
 def _run(cwd: Path, *args: str, timeout: float = 120) -> subprocess.CompletedProcess:
     return subprocess.run([*CLI, "run", *args, "--no-progress"], cwd=cwd, capture_output=True, text=True,
-                          timeout=timeout, preexec_fn=_default_signals)
+                          timeout=timeout, preexec_fn=default_signals)
 
 
 def _partials(where: Path) -> list[str]:
@@ -183,7 +177,7 @@ def test_a_sweep_keeps_runs_whose_code_prints_without_newline_and_leaves_a_threa
     t0 = time.monotonic()
     res = subprocess.run([*CLI, "sweep", "hostile.py:thread", "--param", "seed=0,1", "--duration", "4.5",
                           "--jobs", "1", "--timeout", "30", "--out", "t.csv", "--no-progress"], cwd=user,
-                         capture_output=True, text=True, timeout=150, preexec_fn=_default_signals)
+                         capture_output=True, text=True, timeout=150, preexec_fn=default_signals)
     assert res.returncode == 0, res.stderr
     assert time.monotonic() - t0 < 30          # before: each run killed at --timeout + 15 s
     import csv
@@ -204,7 +198,7 @@ def test_a_user_thread_does_not_keep_a_finished_run_alive(user: Path) -> None:
 def test_after_the_summary_a_signal_ends_a_process_that_user_code_holds(user: Path) -> None:
     proc = subprocess.Popen([*CLI, "run", "hostile.py:waits_at_exit", "--duration", "4.5", "--json",
                              "--no-record", "--no-progress"], cwd=user, stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True, preexec_fn=_default_signals)
+                            stderr=subprocess.PIPE, text=True, preexec_fn=default_signals)
     try:
         line = proc.stdout.readline()          # the summary: the run is over
         assert json.loads(line)["completed"] is True
@@ -224,7 +218,7 @@ def _signal_when_looping(cwd: Path, args: list[str], sig: int) -> tuple[int, flo
     """Start ``run ARGS``, send ``sig`` once the user code loops; (exit code, seconds from the
     signal to the exit, stderr)."""
     proc = subprocess.Popen([*CLI, "run", *args, "--no-progress"], cwd=cwd, stdout=subprocess.DEVNULL,
-                            stderr=subprocess.PIPE, text=True, preexec_fn=_default_signals)
+                            stderr=subprocess.PIPE, text=True, preexec_fn=default_signals)
     try:
         first = proc.stderr.readline()
         while first and "LOOPING" not in first:
