@@ -39,3 +39,13 @@ def test_the_readme_offers_the_fast_subset_first_then_what_ci_runs():
     assert [shlex.split(c) for c in ci] == [whole], "the README's whole-suite command is .ci/run's"
     for argv in (fast, whole):
         assert argv[argv.index("-n") + 1] == "auto" and argv[argv.index("--dist") + 1] == "loadfile", argv
+        # files in collection order, the longest first (tests/conftest.py), not by number of tests
+        assert "--no-loadscope-reorder" in argv, argv
+
+
+def test_the_longest_files_named_first_exist():
+    from conftest import LONGEST_FIRST
+
+    assert len(set(LONGEST_FIRST)) == len(LONGEST_FIRST)
+    for name in LONGEST_FIRST:
+        assert (REPO / "tests" / name).is_file(), name
