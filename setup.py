@@ -76,9 +76,9 @@ def ext_modules(prefixes: tuple[str, ...] = ("humanoid_twin",), jobs: int | None
     """The core's extension modules (those whose name starts with one of ``prefixes``), their C
     generated into ``C_BUILD_DIR`` by ``jobs`` Cython processes (default: one per core).
     ``debug``: with Cython's run-time checks and C debug symbols (its C in ``C_BUILD_DIR-debug``,
-    so that each folder's C matches its directives); ``annotate``: an HTML page per
-    module beside its C (``cython -a``: each line's C, the lines that call into Python in
-    yellow)."""
+    so that each folder's C matches its directives); ``annotate``: the C of every module
+    named written again, with an HTML page beside it (``cython -a``: each line's C, the lines
+    that call into Python in yellow)."""
     if os.environ.get("HUMANOID_TWIN_NO_COMPILE"):
         return []
     try:
@@ -93,6 +93,7 @@ def ext_modules(prefixes: tuple[str, ...] = ("humanoid_twin",), jobs: int | None
         language_level=3,
         quiet=True,
         annotate=annotate,
+        force=annotate,         # an up-to-date module's C is not written again, nor its page
         compiler_directives={**COMPILER_DIRECTIVES, **(DEBUG_DIRECTIVES if debug else {})},
     )
 

@@ -7,7 +7,7 @@ build/cython/ (build/cython-debug/ for --debug), the compiled modules beside the
 
     python scripts/build_core.py                          # every core module
     python scripts/build_core.py humanoid_twin.slave      # one package
-    python scripts/build_core.py --annotate               # and build/cython/**/*.html (cython -a)
+    python scripts/build_core.py humanoid_twin.slave.servo --annotate   # build/cython/**/servo.html
     python scripts/build_core.py --debug                  # Cython's checks on, C debug symbols
 
 A --debug build runs slower: rebuild without --debug when done (the switch rebuilds every module
@@ -34,7 +34,8 @@ def main() -> int:
     ap.add_argument("--debug", action="store_true",
                     help="boundscheck, initializedcheck and overflowcheck on; -g -O0")
     ap.add_argument("--annotate", action="store_true",
-                    help="an HTML page per module beside its C: each line's C, Python calls in yellow")
+                    help="the named modules' C written again with an HTML page beside it (cython -a): "
+                         "each line's C, Python calls in yellow")
     args = ap.parse_args()
     if args.jobs < 1:
         print(f"build_core.py: --jobs must be at least 1, not {args.jobs}", file=sys.stderr)
