@@ -1,8 +1,9 @@
 #!/usr/bin/env python3
-"""Rebuild the compiled core in place, for a developer editing it (an editable install loads the
-compiled modules from the source tree): the modules humanoid_twin/core_modules.py names, with the
-same Cython directives as ``pip install -e .`` (setup.py), only those whose name starts with one
-of the given prefixes, and only what changed since the last build. Cython's C goes to
+"""Rebuild the compiled core in place: only what changed since the last build.
+
+For a developer editing the core (an editable install loads the compiled modules from the source
+tree): the modules humanoid_twin/core_modules.py names, with the same Cython directives as ``pip
+install -e .`` (setup.py), only those whose name starts with one of the given prefixes. Cython's C goes to
 build/cython/ (build/cython-debug/ for --debug), the compiled modules beside their sources.
 
     python scripts/build_core.py                          # every core module
