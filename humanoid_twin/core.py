@@ -26,6 +26,8 @@ from collections.abc import Sequence
 from pathlib import Path
 from types import ModuleType
 
+from humanoid_twin.core_modules import CORE_MODULES, source_path
+
 PURE_PYTHON_ENV = "HUMANOID_TWIN_PURE_PYTHON"
 PACKAGE = "humanoid_twin"
 # the module whose form tells which core runs: the clock drives every event of the twin
@@ -75,23 +77,24 @@ def core_kind() -> str:
 
 
 def stale_modules(pkg: Path | None = None) -> list[str]:
-    """In a source tree (an editable install), the compiled modules older than their ``.py`` or
-    ``.pxd``: an edit not yet rebuilt (``python scripts/build_core.py``), which the compiled module
-    would silently ignore (the package's import runs the source then: :func:`source_if_stale`).
-    Empty for an installed wheel and for the interpreted source. ``pkg``: the package's folder
-    (default: this package's)."""
+    """In a source tree (an editable install), the compiled modules (``core_modules.py``'s list)
+    older than their ``.py`` or ``.pxd``: an edit not yet rebuilt (``python
+    scripts/build_core.py``), which the compiled module would silently ignore (the package's
+    import runs the source then: :func:`source_if_stale`). Empty for an installed wheel and for
+    the interpreted source. ``pkg``: the package's folder (default: this package's)."""
     pkg = Path(__file__).resolve().parent if pkg is None else pkg
     if pure_python_requested() or not (pkg.parent / "setup.py").is_file():
         return []
     stale = []
-    for pxd in sorted(pkg.rglob("*.pxd")):
-        source = pxd.with_suffix(".py")
-        built = [p for p in pxd.parent.glob(pxd.stem + ".*") if p.suffix in (".so", ".pyd")]
+    for name in sorted(CORE_MODULES):
+        source = pkg.parent / source_path(name)
+        built = [p for p in source.parent.glob(source.stem + ".*") if p.suffix in (".so", ".pyd")]
         if not built or not source.is_file():
             continue
-        newest_source = max(source.stat().st_mtime, pxd.stat().st_mtime)
+        pxd = source.with_suffix(".pxd")
+        newest_source = max(source.stat().st_mtime, pxd.stat().st_mtime if pxd.is_file() else 0.0)
         if newest_source > max(p.stat().st_mtime for p in built):
-            stale.append(".".join(source.relative_to(pkg.parent).with_suffix("").parts))
+            stale.append(name)
     return stale
 
 

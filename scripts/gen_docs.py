@@ -8,6 +8,8 @@ Each block sits between ``<!-- generated: NAME -->`` and ``<!-- end generated: N
 - ``summary-keys`` in docs/scenarios.md: the run summary's keys (``summary.SUMMARY_KEYS``).
 - ``fault-kinds`` in docs/supervisor.md: the ``--fault`` kinds (``faults.KINDS``).
 - ``parameters`` in docs/parameters.md: every named parameter (``params.registry()``).
+- ``core-modules`` in docs/architecture.md: the compiled core and why each module is in it
+  (``core_modules.CORE_MODULES``).
 
 docs/fault_matrix.md is the output of ``scripts/fault_matrix.py --seed 0 --out docs/fault_matrix.md``
 (48 runs; tests/project/test_docs.py checks its text and cells against the script, re-runs a sample of
@@ -43,10 +45,17 @@ def _parameters() -> str:
     return params_markdown()
 
 
+def _core_modules() -> str:
+    from humanoid_twin.core_modules import core_modules_markdown
+
+    return core_modules_markdown()
+
+
 BLOCKS: dict[str, tuple[Path, Callable[[], str]]] = {
     "summary-keys": (ROOT / "docs" / "scenarios.md", _summary_keys),
     "fault-kinds": (ROOT / "docs" / "supervisor.md", _fault_kinds),
     "parameters": (ROOT / "docs" / "parameters.md", _parameters),
+    "core-modules": (ROOT / "docs" / "architecture.md", _core_modules),
 }
 
 
