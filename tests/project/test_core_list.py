@@ -8,12 +8,13 @@ from __future__ import annotations
 import importlib.util
 import os
 import re
-from pathlib import Path
+
+from helpers import REPO
 
 from humanoid_twin import core
 from humanoid_twin.core_modules import CORE_MODULES, core_modules_markdown, source_path
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = REPO
 PKG = ROOT / "humanoid_twin"
 
 

@@ -13,9 +13,10 @@ from __future__ import annotations
 
 import importlib
 import re
-from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
+from helpers import REPO
+
+ROOT = REPO
 PKG = ROOT / "humanoid_twin"
 DOC = ROOT / "docs" / "architecture.md"
 

@@ -23,11 +23,12 @@ import ast
 import re
 import time
 from dataclasses import dataclass, field
-from pathlib import Path
+
+from helpers import REPO
 
 from humanoid_twin.core_modules import CORE_MODULES, source_path
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = REPO
 
 
 # ---- the .pxd's declarations -----------------------------------------------------------------
