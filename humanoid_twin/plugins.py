@@ -43,6 +43,7 @@ __all__ = [
     "is_reference",
     "split_reference",
     "entry_point_names",
+    "did_you_mean",
     "load_reference",
 ]
 
@@ -104,7 +105,7 @@ def load_reference(ref: str, kind: Kind) -> Any:
     where, attr = split_reference(ref)
     if not where or not attr:
         raise kind.error(f"{kind.what} {ref!r}: expected {SYNTAX}")
-    module = import_module(ref, where, kind)
+    module = _import_where(ref, where, kind)
     try:
         return attribute_path(module, attr)
     except AttributeError:
@@ -116,7 +117,7 @@ def load_reference(ref: str, kind: Kind) -> Any:
     raise kind.error(f"{kind.what} {ref!r}: {where} has no {attr!r}{_missing(module, where, attr, kind)}")
 
 
-def import_module(ref: str, where: str, kind: Kind) -> Any:
+def _import_where(ref: str, where: str, kind: Kind) -> Any:
     """The module of a reference: a ``.py`` file (imported under a name of its own, once per
     process) or an importable module."""
     path = Path(where).expanduser().resolve() if where.endswith(".py") else None

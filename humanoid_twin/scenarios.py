@@ -214,14 +214,6 @@ def scenario(name: str, *, moves: bool = True, double_support: bool = False) -> 
     return register
 
 
-def get_scenario(name: str) -> Scenario:
-    """The registered scenario ``name``; :class:`ScenarioError` naming the choices otherwise."""
-    try:
-        return REGISTRY[name]
-    except KeyError:
-        raise ScenarioError(f"unknown scenario {name!r} (choose from {', '.join(REGISTRY)})") from None
-
-
 DEFAULT_T_S = 1.0           # the planners' default motion period (``--T``)
 # the planners' default angle (``--motion``, degrees) per scenario; ``--help`` shows them
 DEFAULT_MOTION_DEG = {"flexao": 20.0, "inclinar": 10.0, "levantar_perna": 40.0, "excite": 6.0}
@@ -970,7 +962,7 @@ def _host_controller(rig: Rig, step: Callable[..., Any], duration: float, period
 
 __all__ = ["RunOptions", "outcome", "SLIP_HELD_MM", "SUMMARY_KEYS", "summary_keys_markdown", "Monitor",
            "NO_SUPPORT_MARGIN_MM",
-           "Plan", "Scenario", "REGISTRY", "scenario", "get_scenario", "load_scenario", "scenario_name",
+           "Plan", "Scenario", "REGISTRY", "scenario", "load_scenario", "scenario_name",
            "ENTRY_POINT_GROUP", "is_reference", "split_reference", "entry_point_names", "did_you_mean",
            "recording_name", "boot", "hold", "BootError", "ScenarioError", "ScenarioInputError",
            "ScenarioLoadError", "SCENARIOS", "with_fields", "own_fields", "SCENARIO_FIELD_PREFIX",

@@ -203,3 +203,16 @@ def test_the_layer_check_fails_on_an_upward_import() -> None:
                    "    from humanoid_twin.rig import Rig\n")
     assert _upward("bus", typing_only) == []
     assert _upward("rig", "from humanoid_twin.bus.frames import frame_bits\n") == []   # downward
+
+
+def test_the_docs_layer_table_is_this_one() -> None:
+    """docs/architecture.md "Layers" lists the same layers, top first, with the same units."""
+    text = (ROOT / "docs" / "architecture.md").read_text(encoding="utf-8")
+    section = text.split("\n## Layers\n", 1)[1].split("\n## ", 1)[0]
+    rows = [line.split("|")[1:3] for line in section.splitlines() if line.startswith("| ") and "`" in line]
+    documented = []
+    for number_name, units in rows:
+        number, name = number_name.strip().split(" ", 1)
+        names = [u.strip("`/").removesuffix(".py") for u in units.split("`")[1::2]]
+        documented.append((int(number), name, tuple(names)))
+    assert documented == [(n + 1, name, units) for n, (name, units) in reversed(list(enumerate(LAYERS)))]
