@@ -25,7 +25,7 @@ How a kind combines is its :class:`~humanoid_twin.faults.FaultKind`'s (``combine
 
 A combination the CAN wire cannot carry, a drop and a corruption whose probabilities add up to
 more than 1 at some instant (a frame is lost *or* destroyed, never both), is refused before the
-run (:func:`check_composition`: :class:`~humanoid_twin.faults.FaultSpecError`, exit 2 from the
+run (:func:`check_composition`: :class:`FaultSpecError`, exit 2 from the
 CLI).
 """
 
@@ -37,13 +37,20 @@ from typing import Any
 
 from humanoid_twin.clock import US_PER_S
 
-__all__ = ["combine_probability", "active_at", "check_composition", "effective", "target_of"]
+__all__ = ["KINDS", "FaultSpecError", "combine_probability", "active_at", "check_composition", "effective",
+           "target_of"]
 
+# The fault kinds by name: each a :class:`~humanoid_twin.faults.FaultKind` (``faults.register``
+# adds one). Held here, below faults.py, because the composition reads each kind's ``combine``,
+# ``targeted`` and ``lasts_us``; faults.py fills it and names it ``faults.KINDS``.
+KINDS: dict[str, Any] = {}
+
+
+class FaultSpecError(ValueError):
+    """A ``--fault`` SPEC that cannot be used, alone or with the others (the message is one line)."""
 
 
 def _kind(name: str) -> Any:
-    from humanoid_twin.faults import KINDS  # the registry (faults.py imports this module)
-
     return KINDS[name]
 
 
@@ -87,9 +94,7 @@ def effective(kind: str, active: Iterable[Any], target: Any = None) -> Any:
 def check_composition(specs: Sequence[Any]) -> None:
     """Refuse a set of faults the twin cannot combine: at some instant the CAN drop and
     corruption probabilities (each combined over its active faults) add up to more than 1.
-    Raises :class:`~humanoid_twin.faults.FaultSpecError` (one line) naming the faults."""
-    from humanoid_twin.faults import FaultSpecError
-
+    Raises :class:`FaultSpecError` (one line) naming the faults."""
     can = [s for s in specs if s.kind in ("can-drop", "can-corrupt")]
     for t in sorted({s.t0_s for s in can}):
         active = active_at(can, t)

@@ -22,8 +22,16 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 from humanoid_twin.clock import US_PER_S
-from humanoid_twin.fault_compose import check_composition, combine_probability, effective, target_of
+from humanoid_twin.fault_compose import (  # KINDS and FaultSpecError live there, below this module
+    KINDS,
+    FaultSpecError,
+    check_composition,
+    combine_probability,
+    effective,
+    target_of,
+)
 from humanoid_twin.hardware import FOOT_OF_SCU, N_SERVOS, PWM_PERIOD_US
+from humanoid_twin.limits import MAX_RUN_S
 from humanoid_twin.master.pic import ROUND_US
 from humanoid_twin.protocol.wire import node_error, node_name, scu_error
 from humanoid_twin.seeds import STREAM_SERIAL_NOISE, derive_seed
@@ -46,11 +54,7 @@ _NUM = r"[+-]?(?:\d+(?:\.\d*)?|\.\d+)(?:[eE][+-]?\d+)?"
 _NUMBER = re.compile(rf"^{_NUM}$", re.ASCII)
 _INTEGER = re.compile(r"^[+-]?\d+$", re.ASCII)
 _TIMES = re.compile(rf"^(?P<t0>{_NUM})(?:-(?P<t1>{_NUM}))?$", re.ASCII)
-MAX_FAULT_S = 86_400.0       # T0 and T1 within one simulated day (run's --duration bound)
-
-
-class FaultSpecError(ValueError):
-    """A ``--fault`` SPEC that cannot be used (the message is one line)."""
+MAX_FAULT_S = MAX_RUN_S      # T0 and T1 within one simulated day (humanoid_twin/limits.py)
 
 
 @dataclass(frozen=True)
@@ -279,9 +283,6 @@ class FaultKind:
     targeted: bool = False
     combine: Callable[[list[Any]], Any] = _any
     lasts_us: int | None = None
-
-
-KINDS: dict[str, FaultKind] = {}
 
 
 def register(kind: FaultKind) -> FaultKind:

@@ -1,6 +1,6 @@
 """A serial log replayed into a fresh twin, its answers checked: ``humanoid-twin replay FILE``.
 
-The log (bus/serial_log.py, docs/buses.md "The serial log") is the input of a session and what
+The log (recording/serial_log.py, docs/buses.md "The serial log") is the input of a session and what
 the host saw. :func:`replay` builds the :class:`~humanoid_twin.rig.Rig` its meta describes
 (:meth:`~humanoid_twin.rig.RigOptions.from_replay_meta`), feeds the host's bytes, flushes and
 unplugs at their instants and compares every answer of the twin with the log's, byte for byte
@@ -9,7 +9,7 @@ and microsecond for microsecond; on request it records the replay as a run does 
 
 A log is data (it may come from anywhere), so before anything runs or is written
 (:func:`check_log`) the whole file is read and checked: its lines against the format and each
-other (bus/serial_log.iter_log: times, lengths, one simulated day at most), and its meta's
+other (recording/serial_log.iter_log: times, lengths, one simulated day at most), and its meta's
 values (:func:`check_meta`). A replay imports no code a log names: a firmware law the meta
 names is the package's own built-in class, or the class the caller gives (``--law``) under the
 same name; otherwise :class:`ReplayError`. The CAN wire is rebuilt in-process only (a log never
@@ -29,7 +29,10 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from humanoid_twin.bus.serial_log import (
+from humanoid_twin.clock import US_PER_S
+from humanoid_twin.controllers import law_reference
+from humanoid_twin.protocol.wire import BAUDRATE, BYTESIZE, PARITY, STOPBITS
+from humanoid_twin.recording.serial_log import (
     MAX_LOG_S,
     TAP_FLUSH,
     TAP_TO_DEVICE,
@@ -41,9 +44,6 @@ from humanoid_twin.bus.serial_log import (
     line_settings,
     scan_log,
 )
-from humanoid_twin.clock import US_PER_S
-from humanoid_twin.controllers import law_reference
-from humanoid_twin.protocol.wire import BAUDRATE, BYTESIZE, PARITY, STOPBITS
 from humanoid_twin.rig import Rig, RigOptions
 from humanoid_twin.seeds import SEED_MAX
 
@@ -291,7 +291,7 @@ def replay(path: str | Path, seed: int | None = None, *, laws: Iterable[tuple[in
     (``bus/bridges.py``): the replay does both. A host line at the instant the twin is at is fed
     at once: the host wrote it before the events of that instant ran (the first request at 0,
     before a fault that starts at 0). Without outputs the replay stops at the first difference."""
-    from humanoid_twin.slave.laws import LawError
+    from humanoid_twin.controllers import LawError
 
     info = check_log(path) if info is None else info
     opts = replay_options(path, info, seed=seed, laws=laws, can_interface=can_interface)

@@ -8,7 +8,7 @@ A rig is the :class:`~humanoid_twin.twin.Twin` and what a run puts on it, always
 2. the firmware laws (``--law``) on every Slave;
 3. the rerun recorder (``--out FILE.rrd``; live to a viewer too with ``serve --viewer`` /
    ``--connect``: ``live``), then the CAN log (``--can-log FILE``), then the
-   serial log (``--serial-log FILE``: every RS-232 byte, bus/serial_log.py; its header records
+   serial log (``--serial-log FILE``: every RS-232 byte, recording/serial_log.py; its header records
    :meth:`RigOptions.replay_meta`, and the tilt's start once known, so that its replay rebuilds
    this rig: :meth:`RigOptions.from_replay_meta`);
 4. the ground-truth monitor, then the boards' report (task load, deadline misses, the IMU);
@@ -35,7 +35,7 @@ from pathlib import Path
 from typing import Any
 
 from humanoid_twin.board_report import BoardReport
-from humanoid_twin.controllers import law_reference
+from humanoid_twin.controllers import install_laws, law_reference
 from humanoid_twin.cycles import DEFAULT_PIC_MHZ
 from humanoid_twin.faults import FaultInjector, FaultSpec
 from humanoid_twin.host import drivers
@@ -43,7 +43,6 @@ from humanoid_twin.host.motion import power_on
 from humanoid_twin.host.timebase import sleep as host_sleep
 from humanoid_twin.master.supervisor import ESTOP, READY, SAFE, SupervisorConfig
 from humanoid_twin.monitor import CONTROLLERS_START_S, Monitor
-from humanoid_twin.slave.laws import install_laws
 from humanoid_twin.twin import Twin
 
 __all__ = ["Rig", "RigOptions", "ScenarioError", "BootError", "boot", "tilt_profile", "BOOT_TIMEOUT_S",
@@ -78,7 +77,7 @@ class RigOptions:
     out: Path | None = None
     can_log: Path | None = None
     can_log_name: str | None = None
-    # the RS-232 log (humanoid_twin/bus/serial_log.py), replayable into a rig of the same options
+    # the RS-232 log (humanoid_twin/recording/serial_log.py), replayable into a rig of the same options
     serial_log: Path | None = None
     # a rerun viewer's gRPC URL (rerun+http://127.0.0.1:PORT/proxy): the recording streams there
     # live, in chunks of LIVE_CHUNK_S simulated seconds (beside ``out``, or alone)
@@ -242,7 +241,7 @@ class Rig:
 
             self.canlog = CanLog(opts.can_log, twin.network, name=opts.can_log_name, params=twin.params)
         if opts.serial_log is not None:
-            from humanoid_twin.bus.serial_log import SerialLog
+            from humanoid_twin.recording.serial_log import SerialLog
 
             self.seriallog = SerialLog(opts.serial_log, twin.link, meta=opts.replay_meta())
         self.monitor = Monitor(twin)

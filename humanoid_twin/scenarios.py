@@ -18,11 +18,7 @@ scenario is one small factory below, decorated with :func:`scenario`, that retur
 
 from __future__ import annotations
 
-import hashlib
-import importlib
-import importlib.util
 import math
-import sys
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -31,9 +27,10 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from humanoid_twin import plugins
 from humanoid_twin.clock import US_PER_S
-from humanoid_twin.containment import attribute_path, describe, short_repr, user_fault
-from humanoid_twin.controllers import load_host_controller, run_host_controller
+from humanoid_twin.containment import describe, short_repr, user_fault
+from humanoid_twin.controllers import LawError, load_host_controller, run_host_controller
 from humanoid_twin.host import drivers
 from humanoid_twin.host.motion import exe_traj, send_gains
 from humanoid_twin.host.planners import (
@@ -45,10 +42,12 @@ from humanoid_twin.host.planners import (
     inclinar,
     leg_pose,
     levantar_perna,
-    with_control,
 )
+from humanoid_twin.limits import MAX_RUN_S
 from humanoid_twin.monitor import Monitor
+from humanoid_twin.plan import STAND_CONTROL, STAND_GAINS, Plan
 from humanoid_twin.plant.plant import quiet_instability_warnings
+from humanoid_twin.plugins import is_reference, split_reference
 from humanoid_twin.protocol.wire import ControlType
 from humanoid_twin.rig import (
     BOOT_TIMEOUT_S,
@@ -61,7 +60,6 @@ from humanoid_twin.rig import (
     tilt_profile,
 )
 from humanoid_twin.signals import check as check_signal
-from humanoid_twin.slave.laws import LawError
 from humanoid_twin.summary import (
     NO_SUPPORT_MARGIN_MM,
     SLIP_HELD_MM,
@@ -80,7 +78,7 @@ CONTROL_CHOICES: dict[str, int] = {t.label: t for t in ControlType}   # run --co
 # (seed 000 SERVO ``calibration``); a --duration below it is refused before the run starts
 BOOT_MIN_S = (100 + 25) * 0.020
 SETTLE_S = 2.0
-ENTRY_POINT_GROUP = "humanoid_twin.scenarios"     # a package's scenarios, by name
+ENTRY_POINT_GROUP = plugins.SCENARIO_GROUP     # a package's scenarios, by name
 
 
 class ScenarioInputError(ScenarioError):
@@ -116,8 +114,9 @@ class WallTimeoutExpired(BaseException):
     scenario), the caller says so."""
 
 
-# one simulated day: a run's --duration, or a scenario's motion_s, beyond it is refused
-MAX_DURATION_S = 86_400.0
+# one simulated day (humanoid_twin/limits.py): a run's --duration, or a scenario's motion_s,
+# beyond it is refused
+MAX_DURATION_S = MAX_RUN_S
 # a run's end (or a divergence) is raised again at the same instant, by the next step of the clock,
 # while user code swallows it: simulated time does not go past it (a loop that swallows it spins in
 # wall time until --wall-timeout)
@@ -155,44 +154,6 @@ class RunOptions(RigOptions):
     # a user scenario's own dataclass fields, name -> value (``--set scenario.FIELD=VALUE``,
     # sweep's ``--param scenario.FIELD=...``): :func:`with_fields`
     scenario_fields: dict[str, Any] = field(default_factory=dict)
-
-
-_BALANCE_TYPES = (ControlType.REACTION_CONTROL, ControlType.BALANCE_CONTROL)
-
-
-@dataclass
-class Plan:
-    """What a scenario asks of the robot: the planner's ``pos_apply``, ``k``, ``t`` (table 23)."""
-
-    pos_apply: np.ndarray
-    k: np.ndarray
-    t: np.ndarray
-    # per motion, the leg board (SCU 1 or 2) that carries the robot, and whether it carries it
-    # alone (the other foot up); None: both feet down all along, the right leg leads (stand)
-    lead: tuple[int, ...] | None = None
-    single: tuple[bool, ...] | None = None
-
-    def with_control(self, ctype: int, split: bool = False) -> Plan:
-        """The same motions with every leg and hip board (SCU 1-4) on control type ``ctype``
-        (and that type's default gains): ``--control``. ``split`` (the scenarios that keep both
-        feet down, ``Scenario.double_support``: stand, flexao, inclinar): for REACTION and BALANCE
-        the two legs get the leader/follower pair of :data:`STAND_GAINS` instead of the same law,
-        which would make them fight through the pelvis (docs/balance.md 2.2). A plan with
-        ``lead``/``single`` (levantar_perna) keeps its own division of labour instead: REACTION or
-        BALANCE (with the law's single-support gains, ``planners.GAINS``) on the support leg
-        where it carries the robot alone, every other board and motion as planned
-        (docs/balance.md 4 has what the other splits measured)."""
-        if split and self.single is not None and self.lead is not None and ctype in _BALANCE_TYPES:
-            k = np.array(self.k, dtype=float, copy=True)
-            for m, alone in enumerate(self.single):
-                if alone:
-                    k[self.lead[m] - 1, :, m] = control_row(ctype)
-            return Plan(self.pos_apply, k, self.t, self.lead, self.single)
-        k = with_control(self.k, ctype)
-        if split and ctype in _BALANCE_TYPES:
-            for scu, gains in STAND_GAINS.items():
-                k[scu - 1] = control_row(ctype, gains)[:, None, :]
-        return Plan(self.pos_apply, k, self.t, self.lead, self.single)
 
 
 Factory = Callable[[float | None, float | None, int], Plan]
@@ -253,35 +214,9 @@ def scenario(name: str, *, moves: bool = True, double_support: bool = False) -> 
     return register
 
 
-def get_scenario(name: str) -> Scenario:
-    """The registered scenario ``name``; :class:`ScenarioError` naming the choices otherwise."""
-    try:
-        return REGISTRY[name]
-    except KeyError:
-        raise ScenarioError(f"unknown scenario {name!r} (choose from {', '.join(REGISTRY)})") from None
-
-
 DEFAULT_T_S = 1.0           # the planners' default motion period (``--T``)
 # the planners' default angle (``--motion``, degrees) per scenario; ``--help`` shows them
 DEFAULT_MOTION_DEG = {"flexao": 20.0, "inclinar": 10.0, "levantar_perna": 40.0, "excite": 6.0}
-# ``stand``: the vertical posture, both feet down, BALANCE_CONTROL on the leg boards and
-# LOCOMOTION_CONTROL on the hips. In double support the two legs must not run the same law
-# (they fight through the pelvis, docs/balance.md): the right leg leads (its foot front joint
-# moves the mass centre to put its CoP on the foot centre, KP 1, KD 2: gain 1/4) and the left
-# leg follows (KP -8, KD 2: its foot front joint turns the foot to centre its own CoP, 8 times as
-# fast); foot lateral and knee gains 0 (the lateral CoP of a foot in double support is an internal
-# force; a knee bent on one leg only twists the pelvis). Rows: servos 1-3, (KI, KP, KD) bytes.
-# Measured (scripts/balance_study.py, docs/balance.md): largest platform tilt held 36 deg toes up,
-# 37 toes down, against 13 / 12 deg with the controllers off; BALANCE holds from gain 1/8 to 1/2.
-STAND_CONTROL = {1: ControlType.BALANCE_CONTROL, 2: ControlType.BALANCE_CONTROL,
-                 3: ControlType.LOCOMOTION_CONTROL, 4: ControlType.LOCOMOTION_CONTROL}
-STAND_LEAD_KP, STAND_FOLLOW_KP, STAND_KD = 1, -8, 2
-STAND_GAINS: dict[int, tuple[tuple[int, int, int], ...]] = {
-    1: ((0, 0, 0), (0, STAND_LEAD_KP, STAND_KD), (0, 0, 0)),
-    2: ((0, 0, 0), (0, STAND_FOLLOW_KP, STAND_KD), (0, 0, 0)),
-}
-
-
 @scenario("stand", moves=False, double_support=True)
 def _stand(T: float | None, motion: float | None, perna: int) -> Plan:
     """stand still, balance control on the legs; --tilt DEG tilts the platform under it"""
@@ -371,23 +306,10 @@ def _excite(T: float | None, motion: float | None, perna: int) -> Plan:
 
 
 SCENARIOS: tuple[str, ...] = tuple(REGISTRY)   # the built-in scenarios, in registration order
-DOUBLE_SUPPORT_SCENARIOS: tuple[str, ...] = tuple(n for n, s in REGISTRY.items() if s.double_support)
 
 
-# -- user scenarios ------------------------------------------------------------------------------
+# -- user scenarios (the references' rules: humanoid_twin/plugins.py) ---------------------------
 _loaded: dict[str, Scenario] = {}
-
-
-def is_reference(ref: str) -> bool:
-    """``file.py:NAME`` or ``module:NAME`` (a scenario to import), not a name."""
-    return ":" in ref
-
-
-def split_reference(ref: str) -> tuple[str, str]:
-    """``FILE.py:NAME`` / ``MODULE:NAME`` -> ``(FILE.py or MODULE, NAME)`` (split at the last
-    colon: a file's path may hold one); ``("", ref)`` for a name."""
-    where, _, attr = ref.rpartition(":")
-    return where, attr
 
 
 def recording_name(ref: str | Scenario, label: str = "") -> str:
@@ -399,9 +321,13 @@ def recording_name(ref: str | Scenario, label: str = "") -> str:
 
 def entry_point_names() -> list[str]:
     """The scenarios installed packages declare in the group :data:`ENTRY_POINT_GROUP`."""
-    from importlib.metadata import entry_points
+    return plugins.entry_point_names(ENTRY_POINT_GROUP)
 
-    return sorted(ep.name for ep in entry_points(group=ENTRY_POINT_GROUP))
+
+def did_you_mean(name: str) -> str:
+    """``"; did you mean stand?"`` for a misspelt scenario name (the built-in ones and the entry
+    points), or nothing."""
+    return plugins.did_you_mean(name, [*REGISTRY, *entry_point_names()])
 
 
 def load_scenario(ref: str | Scenario) -> Scenario:
@@ -417,32 +343,7 @@ def load_scenario(ref: str | Scenario) -> Scenario:
         return REGISTRY[ref]
     if ref in _loaded:
         return _loaded[ref]
-    if is_reference(ref):
-        where, attr = split_reference(ref)
-        if not where or not attr:
-            raise ScenarioLoadError(f"scenario {ref!r}: expected FILE.py:NAME or MODULE:NAME")
-        module: Any = _import(ref, where)
-        try:
-            obj: Any = attribute_path(module, attr)
-        except AttributeError:
-            hint = _hint(module, where, attr)
-            raise ScenarioLoadError(f"scenario {ref!r}: {where} has no {attr!r}{hint}") from None
-    else:
-        from importlib.metadata import entry_points
-
-        eps = [ep for ep in entry_points(group=ENTRY_POINT_GROUP) if ep.name == ref]
-        if not eps:
-            raise ScenarioLoadError(
-                f"unknown scenario {ref!r} (choose from {', '.join(REGISTRY)}; or FILE.py:NAME, "
-                f"MODULE:NAME, an entry point of {ENTRY_POINT_GROUP!r}: "
-                f"{', '.join(entry_point_names()) or 'none installed'}){did_you_mean(ref)}")
-        try:
-            obj = eps[0].load()
-        except BaseException as exc:       # noqa: BLE001 - a user's package: judged, not trusted
-            if not user_fault(exc):
-                raise
-            why = describe(exc)
-            raise ScenarioLoadError(f"scenario {ref!r}: cannot load its entry point: {why}") from None
+    obj = plugins.load_reference(ref, _KIND)
     if not isinstance(obj, Scenario):
         raise ScenarioLoadError(f"scenario {ref!r} is not a Scenario (got {type(obj).__name__}; "
                                 "docs/scenarios.md, \"Your own scenario\")")
@@ -451,15 +352,6 @@ def load_scenario(ref: str | Scenario) -> Scenario:
                                 "(the default recording is NAME.rrd): give it a name without '/'")
     _loaded[ref] = obj
     return obj
-
-
-def did_you_mean(name: str) -> str:
-    """``"; did you mean stand?"`` for a misspelt scenario name (the built-in ones and the entry
-    points), or nothing."""
-    import difflib
-
-    close = difflib.get_close_matches(name, [*REGISTRY, *entry_point_names()], n=1, cutoff=0.6)
-    return f"; did you mean {close[0]}?" if close else ""
 
 
 def _hint(module: Any, where: str, attr: str) -> str:
@@ -474,41 +366,10 @@ def _hint(module: Any, where: str, attr: str) -> str:
     if by_name:
         return (f": {attr!r} is the name of its Scenario object {by_name[0]!r}; a reference names the "
                 f"variable: {where}:{by_name[0]}")
-    import difflib
-
-    close = difflib.get_close_matches(attr, list(found), n=1)
-    guess = f"; did you mean {close[0]}?" if close else ""
-    return f" (its Scenario objects: {', '.join(found)}){guess}"
+    return f" (its Scenario objects: {', '.join(found)}){plugins.did_you_mean(attr, found)}"
 
 
-def _import(ref: str, where: str) -> Any:
-    """The module of a scenario reference: a ``.py`` file (imported under a name of its own) or an
-    importable module."""
-    try:
-        if where.endswith(".py"):
-            path = Path(where).expanduser().resolve()
-            if not path.is_file():
-                raise ScenarioLoadError(f"scenario {ref!r}: no such file {where}")
-            name = "humanoid_twin_user_scenario_" + hashlib.sha256(str(path).encode()).hexdigest()[:12]
-            if name in sys.modules:
-                return sys.modules[name]
-            spec = importlib.util.spec_from_file_location(name, path)
-            assert spec is not None and spec.loader is not None
-            module = importlib.util.module_from_spec(spec)
-            sys.modules[name] = module
-            try:
-                spec.loader.exec_module(module)
-            except BaseException:
-                del sys.modules[name]
-                raise
-            return module
-        return importlib.import_module(where)
-    except ScenarioLoadError:
-        raise
-    except BaseException as exc:           # noqa: BLE001 - a user's module: any import failure
-        if not user_fault(exc):
-            raise
-        raise ScenarioLoadError(f"scenario {ref!r}: cannot import {where}: {describe(exc)}") from None
+_KIND = plugins.Kind("scenario", ENTRY_POINT_GROUP, ScenarioLoadError, builtins=lambda: REGISTRY, hint=_hint)
 
 
 SCENARIO_FIELD_PREFIX = "scenario."     # --set scenario.FIELD=VALUE: a user scenario's own field
@@ -579,11 +440,6 @@ def plan(scenario: str | Scenario, T: float | None = None, motion: float | None 
          perna: int = 1) -> Plan:
     """The plan of the scenario ``scenario`` (:func:`load_scenario`) with its defaults."""
     return load_scenario(scenario).plan(T, motion, perna)
-
-
-def run_plan(spec: Scenario, opts: RunOptions) -> Plan:
-    """The plan a run of ``spec`` executes: the scenario's, with ``--control``'s type if given."""
-    return _with_control(spec, spec.plan(opts.T, opts.motion, opts.perna), opts.control)
 
 
 def _with_control(spec: Scenario, the_plan: Plan, control: str | None) -> Plan:
@@ -740,10 +596,10 @@ def expected_run_s(scenario: str | Scenario, duration: float | None = None, T: f
 
 def scenario_plan(spec: Scenario, label: str, T: float | None, motion: float | None, perna: int,
                    control: str | None = None) -> Plan:
-    """:func:`run_plan` of a scenario (its name as given: ``label``): a ``ValueError`` (the planners'
-    own limits: ``--T`` fits one byte of 20 ms ticks, each joint's range ...) is a
-    :class:`ScenarioInputError`; anything else a user's factory raises, a :class:`ScenarioError`
-    naming it (one line)."""
+    """The plan a run of ``spec`` executes (its name as given: ``label``): the scenario's, with
+    ``--control``'s type ``control`` if given. A ``ValueError`` (the planners' own limits: ``--T``
+    fits one byte of 20 ms ticks, each joint's range ...) is a :class:`ScenarioInputError`;
+    anything else a user's factory raises, a :class:`ScenarioError` naming it (one line)."""
     try:
         the_plan = spec.plan(T, motion, perna)
     except ValueError as exc:
@@ -1106,10 +962,11 @@ def _host_controller(rig: Rig, step: Callable[..., Any], duration: float, period
 
 __all__ = ["RunOptions", "outcome", "SLIP_HELD_MM", "SUMMARY_KEYS", "summary_keys_markdown", "Monitor",
            "NO_SUPPORT_MARGIN_MM",
-           "Plan", "Scenario", "REGISTRY", "scenario", "get_scenario", "load_scenario", "scenario_name",
-           "ENTRY_POINT_GROUP", "boot", "hold", "BootError", "ScenarioError", "ScenarioInputError",
+           "Plan", "Scenario", "REGISTRY", "scenario", "load_scenario", "scenario_name",
+           "ENTRY_POINT_GROUP", "is_reference", "split_reference", "entry_point_names", "did_you_mean",
+           "recording_name", "boot", "hold", "BootError", "ScenarioError", "ScenarioInputError",
            "ScenarioLoadError", "SCENARIOS", "with_fields", "own_fields", "SCENARIO_FIELD_PREFIX",
-           "CONTROL_CHOICES", "plan", "run", "run_plan", "tilt_profile",
+           "CONTROL_CHOICES", "plan", "run", "tilt_profile",
            "expected_run_s", "Session", "open_run", "MAX_DURATION_S", "check_motion_s", "scenario_motion_s",
            "scenario_plan", "WallTimeoutExpired", "arm_wall_timeout", "disarm_wall_timeout",
            "wall_timeout_armed",

@@ -13,12 +13,12 @@ from humanoid_twin.cycles import DEFAULT_PIC_MHZ
 from humanoid_twin.faults import FaultSpec
 from humanoid_twin.monitor import CONTROLLERS_START_S
 from humanoid_twin.params import params_digest
+from humanoid_twin.plan import Plan
 from humanoid_twin.protocol.wire import SCUS, ControlType
 from humanoid_twin.twin import Twin
 
 if TYPE_CHECKING:
     from humanoid_twin.rig import Rig
-    from humanoid_twin.scenarios import Plan
 
 __all__ = ["SUMMARY_KEYS", "SUMMARY_SUBKEYS", "summary_keys_markdown", "build_summary", "outcome",
            "SLIP_HELD_MM", "NO_SUPPORT_MARGIN_MM", "FOOT_SCUS", "plain_value", "table_cells", "table_columns"]

@@ -37,13 +37,12 @@ from pathlib import Path
 from typing import Any
 
 from humanoid_twin.host.planners import control_row
+from humanoid_twin.plan import STAND_KD, STAND_LEAD_KP
 from humanoid_twin.plant.plant import TILT_MAX_DEG as PLATFORM_TILT_MAX_DEG
 from humanoid_twin.protocol.wire import ControlType
 from humanoid_twin.rig import Rig, RigOptions
 from humanoid_twin.scenarios import (
     SETTLE_S,
-    STAND_KD,
-    STAND_LEAD_KP,
     TILT_RATE_DEG_S,
     Plan,
     hold,

@@ -103,7 +103,7 @@ def main() -> None:
     # one-time costs of a process, measured apart: importing the recording stack (rerun,
     # pyarrow) and a short warm-up run (imports of the firmware, bytecode caches)
     t0 = time.perf_counter()
-    import humanoid_twin.recording.rerun_recorder  # noqa: F401
+    import humanoid_twin.recording.rerun_recorder  # noqa: F401  (the package loads rerun lazily)
     rec_import = time.perf_counter() - t0
     run(RunOptions(scenario="flexao", duration=3.0, progress=False, monitor=False))
 

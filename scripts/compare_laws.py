@@ -40,7 +40,7 @@ ONE_LEG_SEEDS = range(10)
 
 
 def _law_class(ref: str) -> Any:
-    from humanoid_twin.slave.laws import load_law
+    from humanoid_twin.controllers import load_law
 
     if str(ROOT) not in sys.path:
         sys.path.insert(0, str(ROOT))

@@ -10,7 +10,7 @@ Device (Master) side: ``set_device_rx(cb)`` gets each byte at its stop bit (one 
 byte), ``device_write(data)``. Host side: ``host_write(data)``, ``host_read_available()`` (the
 bytes whose stop bit is <= now), ``next_host_byte_us()`` (a reader's next instant).
 Observers: ``add_tap(cb)`` sees every write in either direction and every drop of bytes on their
-way (``bus/serial_log.py`` writes them to a file).
+way (``recording/serial_log.py`` writes them to a file).
 """
 
 from __future__ import annotations

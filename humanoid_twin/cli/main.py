@@ -266,7 +266,7 @@ def output_bytes(kind: str, path: Path, expected_s: float) -> int:
 
         return round(expected_s * RRD_BYTES_PER_S * (2 if compact_for(expected_s) else 1))
     if kind == "serial_log":
-        from humanoid_twin.bus.serial_log import max_bytes_per_s
+        from humanoid_twin.recording.serial_log import max_bytes_per_s
 
         return round(expected_s * max_bytes_per_s())     # measured flexao: 18 400 bytes/s
     suffix = path.suffix.lower()
@@ -537,10 +537,10 @@ def cmd_serve(args: argparse.Namespace) -> int:
     ``--can-log`` and ``--serial-log`` written under temporary names and renamed when serve ends
     (Ctrl-C, SIGTERM)."""
     from humanoid_twin import signals
+    from humanoid_twin.controllers import LawError
     from humanoid_twin.recording.readback import RrdReadError
     from humanoid_twin.recording.viewer import ViewerError, live_url, spawn_live_viewer
     from humanoid_twin.serve import ServeError, ServeOptions, serve
-    from humanoid_twin.slave.laws import LawError
 
     signals.user_code_runs()        # the laws are imported here
     controllers = check_rig_inputs(args)        # the same checks as run's (cli/options.py)

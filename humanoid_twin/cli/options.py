@@ -207,8 +207,13 @@ def load_controllers(args: argparse.Namespace) -> dict[str, Any]:
     """The controller fields of the options: ``--law`` s (and ``run``'s ``--host-controller``),
     imported and checked before the run starts (so a bad value writes nothing); a bad one is a
     usage error."""
-    from humanoid_twin.controllers import ControllerError, load_host_controller
-    from humanoid_twin.slave.laws import LawError, load_law, parse_law_option
+    from humanoid_twin.controllers import (
+        ControllerError,
+        LawError,
+        load_host_controller,
+        load_law,
+        parse_law_option,
+    )
 
     ctl = vars(args).get("host_controller")
     if args.law or ctl:

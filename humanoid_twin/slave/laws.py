@@ -32,16 +32,16 @@ The four laws of table 9 are written on this interface: :class:`OpenLoopLaw`,
 :class:`LocomotionLaw` (incremental PID), :class:`ReactionLaw` and :class:`JacobianLaw`
 (docs/balance.md, docs/firmware.md). A user's law replaces one of them for one control type:
 ``humanoid-twin run ... --law balance=mypkg.mylaw:MyLaw``, ``RunOptions(laws=...)``,
-:func:`install_laws`, or a package's entry point in the group :data:`ENTRY_POINT_GROUP`
-(``--law balance=NAME``). docs/controllers.md is the how-to.
+``humanoid_twin.controllers.install_laws``, or a package's entry point in the group
+``humanoid_twin.laws`` (``--law balance=NAME``): finding and installing a law is
+humanoid_twin/controllers.py's (this module holds what runs each tick). docs/controllers.md is the
+how-to.
 """
 
 from __future__ import annotations
 
-import importlib
-from collections.abc import Callable, Iterable, Mapping, Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from importlib.metadata import entry_points
 from typing import Any
 
 from humanoid_twin.cycles import LAW
@@ -56,14 +56,12 @@ __all__ = [
     "VELOCITY_MIN",
     "VELOCITY_MAX",
     "CONTROL_TYPES",
-    "ENTRY_POINT_GROUP",
     "PID_SHIFT",
     "JACOBIAN_SHIFT",
     "GAIN_SHIFT_MAX",
     "LawInputs",
     "ControlLaw",
     "LawFault",
-    "LawError",
     "OpenLoopLaw",
     "LocomotionLaw",
     "ReactionLaw",
@@ -71,10 +69,6 @@ __all__ = [
     "BUILTIN_LAWS",
     "balance_gain_bytes",
     "shr",
-    "load_law",
-    "parse_law_option",
-    "resolve_laws",
-    "install_laws",
 ]
 
 VELOCITY = "velocity"
@@ -85,7 +79,6 @@ VELOCITY_MIN = -(1 << 31)
 
 # Table 9: the wire's control types, by the name the CLI uses (protocol/wire.ControlType.label).
 CONTROL_TYPES: dict[str, int] = {t.label: int(t) for t in ControlType}
-ENTRY_POINT_GROUP = "humanoid_twin.laws"
 
 PID_SHIFT = 4                # PID command u in 1/16 degree: gain byte K = K/16 (Q4.4)
 JACOBIAN_SHIFT = 16          # v_q8 = (KP * J^T e) >> 16
@@ -178,10 +171,6 @@ class LawFault:
         """JSON form (the run summary's ``law_faults`` entries)."""
         return {"t_s": round(self.t_us / 1e6, 6), "scu": self.scu, "control_type": self.control_type,
                 "law": self.law, "reason": self.reason}
-
-
-class LawError(ValueError):
-    """A law could not be found or loaded (bad ``--law`` value, import error, not a law class)."""
 
 
 def shr(v: int, n: int) -> int:
@@ -325,128 +314,3 @@ class JacobianLaw(ControlLaw):
 LawFactory = Callable[[], ControlLaw]
 
 BUILTIN_LAWS: dict[int, LawFactory] = {0: OpenLoopLaw, 1: LocomotionLaw, 2: ReactionLaw, 3: JacobianLaw}
-
-
-# ---------------------------------------------------------------------------------------------
-# finding and installing laws
-
-
-def load_law(ref: str) -> LawFactory:
-    """The law class named by ``ref``: ``"module.path:Class"`` (imported), or the name of an entry
-    point in the group :data:`ENTRY_POINT_GROUP` (a package's shipped law). Raises :class:`LawError`
-    with a one-line reason."""
-    ref = ref.strip()
-    if not ref:
-        raise LawError("empty law reference (use module:Class or an entry point name)")
-    if ":" in ref:
-        mod_name, _, attr = ref.partition(":")
-        try:
-            obj: Any = importlib.import_module(mod_name)
-        except Exception as exc:   # a user's module: any import failure is a bad --law
-            why = f"{type(exc).__name__}: {exc}"
-            raise LawError(f"cannot import {mod_name!r} for law {ref!r}: {why}") from None
-        from humanoid_twin.containment import attribute_path
-
-        try:
-            obj = attribute_path(obj, attr)
-        except AttributeError:
-            raise LawError(f"module {mod_name!r} has no {attr!r} (law {ref!r})") from None
-    else:
-        eps = [ep for ep in entry_points(group=ENTRY_POINT_GROUP) if ep.name == ref]
-        if not eps:
-            known = sorted(ep.name for ep in entry_points(group=ENTRY_POINT_GROUP))
-            raise LawError(f"no law {ref!r}: not module:Class, and no entry point of that name in group "
-                           f"{ENTRY_POINT_GROUP!r} (installed: {', '.join(known) or 'no law'})")
-        try:
-            obj = eps[0].load()
-        except Exception as exc:
-            raise LawError(f"cannot load entry point {ref!r}: {type(exc).__name__}: {exc}") from None
-    if not callable(obj):
-        raise LawError(f"law {ref!r} is not a class (got {type(obj).__name__})")
-    try:
-        probe = obj()
-    except BaseException as exc:       # a user's class (SystemExit included): a bad --law
-        from humanoid_twin.containment import describe, user_fault
-
-        if not user_fault(exc):
-            raise
-        raise LawError(f"law {ref!r} cannot be made with no arguments: {describe(exc)}") from None
-    if not callable(getattr(probe, "step", None)):
-        raise LawError(f"law {ref!r} has no step(inputs) method")
-    if getattr(probe, "output", VELOCITY) not in (VELOCITY, POSITION):
-        raise LawError(f"law {ref!r}: output must be {VELOCITY!r} or {POSITION!r}, got {probe.output!r}")
-    _check_cost(probe, ref)
-    return obj
-
-
-def _check_cost(law: Any, name: str, ctype: int = ControlType.BALANCE_CONTROL) -> tuple[int, bool]:
-    """``law``'s cost, ``(cycles per call, declared)`` (:func:`~humanoid_twin.cycles.law_cycles`,
-    asked once: a ``cycles()`` is user code, whose next answer may differ); :class:`LawError` when
-    it declares a cost (``cycles``) that is not one or raises."""
-    from humanoid_twin.containment import describe, user_fault
-    from humanoid_twin.cycles import law_cycles
-
-    try:
-        return law_cycles(law, ctype)              # the type: the cost of a law declaring none
-    except BaseException as exc:       # a user's cycles: not a cost, or it raised
-        if not user_fault(exc):
-            raise
-        raise LawError(f"law {name!s:.80}: {describe(exc)}") from None
-
-
-def parse_law_option(text: str) -> tuple[int, str]:
-    """``TYPE=REF`` (``balance=mypkg.mylaw:MyLaw``) -> ``(control type, REF)``; TYPE is a name of
-    :data:`CONTROL_TYPES` or its number. Raises :class:`LawError`."""
-    kind, sep, ref = text.partition("=")
-    kind = kind.strip().lower()
-    if not sep or not ref.strip():
-        raise LawError(f"--law {text!r}: expected TYPE=module:Class (TYPE one of {', '.join(CONTROL_TYPES)})")
-    if kind in CONTROL_TYPES:
-        return CONTROL_TYPES[kind], ref.strip()
-    if kind.isdigit() and int(kind) in CONTROL_TYPES.values():
-        return int(kind), ref.strip()
-    raise LawError(f"--law {text!r}: unknown control type {kind!r} (choose from {', '.join(CONTROL_TYPES)})")
-
-
-def resolve_laws(laws: Mapping[int | str, Any] | Iterable[tuple[int | str, Any]]) -> dict[int, LawFactory]:
-    """``{type: law}`` with type a number or a :data:`CONTROL_TYPES` name and law a class or a
-    reference string (:func:`load_law`) -> ``{type number: class}``."""
-    items = laws.items() if isinstance(laws, Mapping) else laws
-    out: dict[int, LawFactory] = {}
-    for kind, law in items:
-        if isinstance(kind, str):
-            if kind.lower() not in CONTROL_TYPES:
-                raise LawError(f"unknown control type {kind!r} (choose from {', '.join(CONTROL_TYPES)})")
-            ctype = CONTROL_TYPES[kind.lower()]
-        else:
-            ctype = int(kind)
-            if ctype not in CONTROL_TYPES.values():
-                raise LawError(f"unknown control type {kind!r} (0..3)")
-        out[ctype] = load_law(law) if isinstance(law, str) else law
-    return out
-
-
-def install_laws(twin: Any, laws: Mapping[int | str, Any] | Iterable[tuple[int | str, Any]]) -> None:
-    """Put the given laws on every Slave of ``twin`` (each board gets its own instance), replacing
-    the built-in law of each control type named: ``install_laws(twin, {"balance": MyLaw})``."""
-    from humanoid_twin.containment import describe, user_fault
-    from humanoid_twin.cycles import note_default_cost
-
-    first: list[tuple[Any, int, tuple[int, bool]]] = []   # one instance per type: its cost said once
-    for ctype, factory in resolve_laws(laws).items():
-        for slave in twin.slaves.values():
-            try:
-                law = factory()
-            except BaseException as exc:   # a user's class: its instance for this board failed
-                if not user_fault(exc):
-                    raise
-                raise LawError(f"law {getattr(factory, '__qualname__', '?')!s:.80} cannot be made for "
-                               f"SCU {slave.address}: {describe(exc)}") from None
-            # each board's instance asked its cost once; the board keeps that answer (issue 36:
-            # a cycles() valid for the first check and invalid here was a traceback)
-            cost = _check_cost(law, f"{getattr(factory, '__qualname__', '?')!s:.80} for SCU {slave.address}",
-                               ctype)
-            slave.servo.set_law(ctype, law, cycles=cost[0])
-        first.append((law, ctype, cost))
-    for law, ctype, cost in first:
-        note_default_cost(law, ctype, cost)

@@ -17,9 +17,9 @@ from pathlib import Path
 import pytest
 from helpers import CLI
 
-from humanoid_twin.bus.serial_log import MAX_LOG_S, read_log
 from humanoid_twin.cli.main import main
 from humanoid_twin.faults import KINDS, parse_fault
+from humanoid_twin.recording.serial_log import MAX_LOG_S, read_log
 from humanoid_twin.replay import replay
 from humanoid_twin.scenarios import RunOptions, run
 
@@ -348,6 +348,7 @@ def test_bad_options_are_one_line_exit_2(argv: list[str], said: str, plain: Path
 
 def test_one_simulated_day_bounds_a_log_a_run_and_a_fault_alike() -> None:
     from humanoid_twin.faults import MAX_FAULT_S
+    from humanoid_twin.limits import MAX_RUN_S
     from humanoid_twin.scenarios import MAX_DURATION_S
 
-    assert MAX_LOG_S == MAX_DURATION_S == MAX_FAULT_S == 86_400
+    assert MAX_LOG_S == MAX_DURATION_S == MAX_FAULT_S == MAX_RUN_S == 86_400

@@ -1,4 +1,4 @@
-"""The serial log (humanoid_twin/bus/serial_log.py, docs/buses.md "The serial log"): every RS-232
+"""The serial log (humanoid_twin/recording/serial_log.py, docs/buses.md "The serial log"): every RS-232
 byte each way with its virtual time, written through the cable's public tap, read back, and
 replayed into a fresh twin whose answers must be the logged ones, byte for byte and microsecond
 for microsecond."""
@@ -12,8 +12,8 @@ from pathlib import Path
 
 import pytest
 
-from humanoid_twin.bus.serial_log import SerialLog, read_log
 from humanoid_twin.host import initcom, killcom, power_on, readjoint
+from humanoid_twin.recording.serial_log import SerialLog, read_log
 from humanoid_twin.replay import replay
 from humanoid_twin.twin import Twin
 

@@ -152,7 +152,7 @@ def test_declared_and_default_law_costs(capsys):
     """A method's cost is used; a law that declares none is charged as the built-in law of its
     type, and the run says so once (not once per board)."""
     with Twin(seed=0) as twin:
-        from humanoid_twin.slave.laws import install_laws
+        from humanoid_twin.controllers import install_laws
 
         install_laws(twin, {"locomotion": _CheapPid, "balance": _Undeclared})
         assert twin.slaves[1].servo.law_cost[1] == 100
@@ -165,7 +165,7 @@ def test_a_bad_declared_cost_is_a_bad_law():
     class Bad(JacobianLaw):
         cycles = -5
 
-    from humanoid_twin.slave.laws import LawError, install_laws
+    from humanoid_twin.controllers import LawError, install_laws
 
     with Twin(seed=0) as twin, pytest.raises(LawError, match="cycles"):
         install_laws(twin, {"balance": Bad})

@@ -19,9 +19,9 @@ import can
 import pytest
 from helpers import CLI, PYSERIAL_FRAME
 
-from humanoid_twin.bus.serial_log import TAP_TO_DEVICE, TAP_TO_HOST, read_log
 from humanoid_twin.protocol.rs232 import FrameError, decode_response
 from humanoid_twin.recording.readback import read_rrd_rows, rerun_executable, verify_rrd
+from humanoid_twin.recording.serial_log import TAP_TO_DEVICE, TAP_TO_HOST, read_log
 
 pytestmark = pytest.mark.slow       # subprocess-heavy: skipped by `pytest -m "not slow"` (README)
 

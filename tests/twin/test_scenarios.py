@@ -43,7 +43,7 @@ def test_a_scenario_added_in_one_place_runs_end_to_end(monkeypatch):
         t[0] = 0.5 if T is None else T
         return Plan(pos, k, t)
 
-    assert scenarios.get_scenario("crouch").doc == "both knees bend 30 degrees"
+    assert scenarios.load_scenario("crouch").doc == "both knees bend 30 degrees"
     s = run(RunOptions("crouch", progress=False))
     assert s["scenario"] == "crouch" and not s["fell"]
     # boot + the 0.5 s motion + the settling time: the motion's duration came from the plan

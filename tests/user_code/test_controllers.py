@@ -12,7 +12,7 @@ import pytest
 from helpers import REPO
 
 from humanoid_twin.cli.main import main
-from humanoid_twin.slave.laws import ENTRY_POINT_GROUP
+from humanoid_twin.controllers import LAW_ENTRY_POINT_GROUP
 
 LAWS = '''
 from humanoid_twin.slave.laws import POSITION, VELOCITY, ControlLaw
@@ -68,7 +68,7 @@ def user_pkg(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> str:
     dist = tmp_path / "ctl_user_laws-0.1.dist-info"
     dist.mkdir()
     (dist / "METADATA").write_text("Metadata-Version: 2.1\nName: ctl-user-laws\nVersion: 0.1\n")
-    (dist / "entry_points.txt").write_text(f"[{ENTRY_POINT_GROUP}]\npush = ctl_user_laws:Push\n")
+    (dist / "entry_points.txt").write_text(f"[{LAW_ENTRY_POINT_GROUP}]\npush = ctl_user_laws:Push\n")
     monkeypatch.syspath_prepend(str(tmp_path))
     monkeypatch.chdir(tmp_path)
     return "ctl_user_laws"
@@ -113,7 +113,7 @@ def test_bad_law_options_are_usage_errors_before_anything_is_written(user_pkg, c
                        ("sideways=ctl_user_laws:Push", "unknown control type"),
                        (f"balance={user_pkg}:Nope", "has no 'Nope'"),
                        ("balance=nopkg_xyz:Law", "cannot import"),
-                       ("balance=not_installed", "no entry point of that name")]:
+                       ("balance=not_installed", "an entry point of 'humanoid_twin.laws'")]:
         with pytest.raises(SystemExit) as exc:
             main(["run", "stand", "--no-record", "--can-log", str(out), "--law", value])
         assert exc.value.code == 2
