@@ -41,7 +41,7 @@ from __future__ import annotations
 
 import math
 import sys
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from functools import partial
 
@@ -142,15 +142,7 @@ class Monitor:
     def sample(self) -> None:
         """One 20 ms sample of the truth (after the boards' ticks at this instant)."""
         twin = self.twin
-        if self.diverged is not None:
-            return
-        why = twin.plant.divergence()
-        if why is not None:
-            self.diverged, self.diverged_at_s = why, twin.now_s
-            if self.on_diverged is not None:
-                self.on_diverged()
-            else:
-                sys.stderr.write(f"humanoid-twin: the simulation diverged at t={twin.now_s:.3f} s: {why}\n")
+        if self.diverged is not None or self._diverges():
             return
         if twin.clock.now_us < self.start_s * US_PER_S:
             return
@@ -161,6 +153,26 @@ class Monitor:
             self.fell = True
             self.fell_at_s = twin.now_s
         now_s = twin.now_s
+        self._extremes(gt, now_s)
+        self._slide(gt.soles_on_surface_mm, now_s)
+
+    def _diverges(self) -> bool:
+        """Whether the simulation diverged at this sample (reported once: ``on_diverged``, or one
+        line on stderr)."""
+        twin = self.twin
+        why = twin.plant.divergence()
+        if why is None:
+            return False
+        self.diverged, self.diverged_at_s = why, twin.now_s
+        if self.on_diverged is not None:
+            self.on_diverged()
+        else:
+            sys.stderr.write(f"humanoid-twin: the simulation diverged at t={twin.now_s:.3f} s: {why}\n")
+        return True
+
+    def _extremes(self, gt: GroundTruth, now_s: float) -> None:
+        """The trunk's largest tilt and the CoP's smallest margin, and when (the run's; the
+        motion's from :attr:`motion_from_s`)."""
         tilt = gt.trunk_tilt_deg
         if tilt > self.trunk_tilt_max_deg or (self.trunk_tilt_max_at_s is None
                                               and tilt >= self.trunk_tilt_max_deg):   # NaN leaves it
@@ -174,10 +186,11 @@ class Monitor:
         motion = self.motion
         if motion is not None and self.motion_from_s is not None and now_s >= self.motion_from_s:
             motion.add(now_s, tilt, margin)
-        # how far a foot standing on the platform has slid since it was set down (in the
-        # platform's frame): the first sample, or the first sample after it was lifted (more
-        # than SOLE_ON_SURFACE_MM above the surface: a step is not a slide)
-        soles = gt.soles_on_surface_mm
+
+    def _slide(self, soles: Sequence[tuple[float, float, float]], now_s: float) -> None:
+        """How far a foot standing on the platform has slid since it was set down (in the
+        platform's frame): the first sample, or the first sample after it was lifted (more than
+        SOLE_ON_SURFACE_MM above the surface: a step is not a slide)."""
         ref = self._soles0
         if ref is None:
             ref = self._soles0 = [None] * len(soles)

@@ -99,11 +99,20 @@ def check_meta(meta: dict[str, Any]) -> None:
     (the limits are the run's own: ``--seed``, ``--tilt``, ``--pic-mhz``, ``--fault``, the CAN
     wire); :class:`ReplayError` naming the first that is not. Keys it does not know are left to
     :meth:`RigOptions.from_replay_meta`."""
+    _check_rig_values(meta)
+    _check_faults(meta)
+    sup = meta.get("supervisor")
+    if sup is not None and not isinstance(sup, dict):
+        raise ReplayError(f"its meta's supervisor must be an object of thresholds, got {sup!r:.80}")
+    laws = meta.get("laws", [])
+    if not isinstance(laws, list) or not all(_is_law_pair(pair) for pair in laws):
+        raise ReplayError(f"its meta's laws must be [control type, \"module:Class\"] pairs, got {laws!r:.80}")
+
+
+def _check_rig_values(meta: dict[str, Any]) -> None:
+    """The meta's seed, platform tilt, PIC clock and CAN channel."""
     from humanoid_twin.cycles import check_pic_mhz
-    from humanoid_twin.fault_compose import check_composition
-    from humanoid_twin.faults import FaultSpecError, parse_fault
     from humanoid_twin.plant.plant import TILT_MAX_DEG
-    from humanoid_twin.slave.laws import CONTROL_TYPES
 
     seed = meta.get("seed", 0)
     if type(seed) is not int or not 0 <= seed <= SEED_MAX:
@@ -121,6 +130,13 @@ def check_meta(meta: dict[str, Any]) -> None:
     if channel is not None and (not isinstance(channel, str) or not channel.isprintable()
                                 or len(channel) > 64):
         raise ReplayError(f"its meta's can_channel must be a name (text), got {channel!r:.80}")
+
+
+def _check_faults(meta: dict[str, Any]) -> None:
+    """The meta's faults: ``--fault`` texts that compose (as a run checks them)."""
+    from humanoid_twin.fault_compose import check_composition
+    from humanoid_twin.faults import FaultSpecError, parse_fault
+
     faults = meta.get("faults", [])
     if not isinstance(faults, list) or not all(isinstance(f, str) for f in faults):
         raise ReplayError(f"its meta's faults must be a list of --fault texts, got {faults!r:.80}")
@@ -128,16 +144,15 @@ def check_meta(meta: dict[str, Any]) -> None:
         check_composition([parse_fault(text) for text in faults])
     except FaultSpecError as exc:
         raise ReplayError(f"its meta's faults: {exc}") from None
-    sup = meta.get("supervisor")
-    if sup is not None and not isinstance(sup, dict):
-        raise ReplayError(f"its meta's supervisor must be an object of thresholds, got {sup!r:.80}")
-    laws = meta.get("laws", [])
-    if not isinstance(laws, list) or not all(
-            isinstance(pair, list) and len(pair) == 2 and isinstance(pair[1], str)
+
+
+def _is_law_pair(pair: Any) -> bool:
+    """``[control type, "module:Class"]``: the type by its number or its name."""
+    from humanoid_twin.slave.laws import CONTROL_TYPES
+
+    return (isinstance(pair, list) and len(pair) == 2 and isinstance(pair[1], str)
             and (type(pair[0]) is int and pair[0] in CONTROL_TYPES.values()
-                 or isinstance(pair[0], str) and pair[0] in CONTROL_TYPES)
-            for pair in laws):
-        raise ReplayError(f"its meta's laws must be [control type, \"module:Class\"] pairs, got {laws!r:.80}")
+                 or isinstance(pair[0], str) and pair[0] in CONTROL_TYPES))
 
 
 def _control_type(ctype: int | str) -> int:

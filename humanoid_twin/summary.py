@@ -30,13 +30,32 @@ def build_summary(rig: Rig, scenario: str, plan: Plan, *, completed: bool, wall_
                   host_calls: int | None = None) -> dict[str, Any]:
     """The summary of the run ``scenario`` (its name as the user gave it) on ``rig``, whose plan
     was ``plan``: every key of :data:`SUMMARY_KEYS` that applies, in that order."""
-    twin, monitor, opts = rig.twin, rig.monitor, rig.opts
+    twin, opts = rig.twin, rig.opts
     sup = twin.master.supervisor
-    started = [s for s in opts.faults if _started(s, rig)]
-    motion = monitor.motion if monitor.motion is not None and monitor.motion.samples else None
     summary: dict[str, Any] = {
         "scenario": scenario,
         "duration_s": round(twin.now_s, 6),
+        **_balance(rig.monitor),
+        **_run_facts(rig, plan, completed=completed, wall_s=wall_s),
+    }
+    if twin.params:     # the named parameters that differ from their defaults (none: every default)
+        summary["params"] = dict(twin.params)
+        summary["params_digest"] = params_digest(twin.params)
+    summary |= {
+        "mode": sup.mode_name,
+        **rig.report.summary(),
+        "faults": [f.as_dict() for f in sup.faults],
+        # the faults that started (one whose T0 lies beyond the run's end is listed apart)
+        "injected": [s.as_dict() for s in opts.faults if _started(s, rig)],
+    }
+    return summary | _what_went_wrong(rig, host_calls)
+
+
+def _balance(monitor: Any) -> dict[str, Any]:
+    """What the monitor saw of the robot: the fall, the trunk's tilt, the slide, the outcome, the
+    CoP's margin (over the whole run, and over the motion alone)."""
+    motion = monitor.motion if monitor.motion is not None and monitor.motion.samples else None
+    return {
         "fell": monitor.fell,
         "fell_at_s": monitor.fell_at_s,
         "trunk_tilt_max_deg": round(monitor.trunk_tilt_max_deg, 3),
@@ -51,6 +70,14 @@ def build_summary(rig: Rig, scenario: str, plan: Plan, *, completed: bool, wall_
         "cop_margin_min_motion_mm": None if motion is None else _finite(motion.cop_margin_min_mm),
         "cop_margin_min_motion_at_s": None if motion is None else _time(motion.cop_margin_min_at_s),
         "cop_error_rms_mm": _round(monitor.cop_error_rms_mm),
+    }
+
+
+def _run_facts(rig: Rig, plan: Plan, *, completed: bool, wall_s: float) -> dict[str, Any]:
+    """How the run went (its speed, the frames, the boot) and what it was given (tilt, control,
+    seed)."""
+    twin, opts = rig.twin, rig.opts
+    return {
         "wall_s": round(wall_s, 3),
         "rtf": round(twin.now_s / wall_s, 3) if wall_s > 0 else None,
         "can_frames": twin.network.frames_sent,
@@ -63,29 +90,26 @@ def build_summary(rig: Rig, scenario: str, plan: Plan, *, completed: bool, wall_
         "control_law": _law_label(twin, plan),
         "seed": opts.seed,
     }
-    if twin.params:     # the named parameters that differ from their defaults (none: every default)
-        summary["params"] = dict(twin.params)
-        summary["params_digest"] = params_digest(twin.params)
-    summary |= {
-        "mode": sup.mode_name,
-        **rig.report.summary(),
-        "faults": [f.as_dict() for f in sup.faults],
-        # the faults that started (one whose T0 lies beyond the run's end is listed apart)
-        "injected": [s.as_dict() for s in started],
-    }
-    not_started = [s.as_dict() for s in opts.faults if not _started(s, rig)]
+
+
+def _what_went_wrong(rig: Rig, host_calls: int | None) -> dict[str, Any]:
+    """The keys present only when they say something: faults that never started, a divergence, the
+    host controller's error, the control laws that stopped; the host controller's calls."""
+    twin, monitor = rig.twin, rig.monitor
+    keys: dict[str, Any] = {}
+    not_started = [s.as_dict() for s in rig.opts.faults if not _started(s, rig)]
     if not_started:
-        summary["injected_not_started"] = not_started
+        keys["injected_not_started"] = not_started
     if monitor.diverged is not None:
-        summary["diverged"] = f"t={monitor.diverged_at_s:.3f} s: {monitor.diverged}"
+        keys["diverged"] = f"t={monitor.diverged_at_s:.3f} s: {monitor.diverged}"
     if rig.host_error is not None:
-        summary["host_error"] = rig.host_error
+        keys["host_error"] = rig.host_error
     law_faults = [sl.servo.law_fault for sl in twin.slaves.values() if sl.servo.law_fault is not None]
     if law_faults:
-        summary["law_faults"] = [f.as_dict() for f in law_faults]
+        keys["law_faults"] = [f.as_dict() for f in law_faults]
     if host_calls is not None:
-        summary["host_controller_calls"] = host_calls
-    return summary
+        keys["host_controller_calls"] = host_calls
+    return keys
 
 
 def note_recording(summary: dict[str, Any], rig: Rig) -> None:

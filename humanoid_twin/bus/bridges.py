@@ -287,7 +287,17 @@ class PtyBridge(_Bridge):
         """Move bytes both ways; returns how many bytes moved."""
         if self.closed:
             raise OSError("PtyBridge is closed")
-        moved = 0
+        self._follow_client()
+        moved = self._receive() if self._session_open else 0
+        out = self.link.host_read_available()
+        if not self._session_open:
+            self.bytes_discarded += len(out)
+            return moved
+        return moved + self._send(out)
+
+    def _follow_client(self) -> None:
+        """A session begins when a client opens the port (after the quiet time) and ends when it
+        closes it; an idle client is said once per timeout."""
         present = self._slave_open()
         if present and not self._session_open:
             if self._quiet():
@@ -306,39 +316,43 @@ class PtyBridge(_Bridge):
             self._log(f"client {self._who} idle for more than {self.idle_timeout_s:g} s "
                       "(a pty client cannot be disconnected: close the port to free it)")
             self._last_rx_wall = time.monotonic()
-        if self._session_open:
-            while True:
-                room = self._room()
-                if not room:
+
+    def _receive(self) -> int:
+        """What the client wrote, onto the line (as much as it has room for); the bytes moved."""
+        moved = 0
+        while True:
+            room = self._room()
+            if not room:
+                break
+            try:
+                data = os.read(self._master_fd, min(_CHUNK, room))
+            except BlockingIOError:
+                break
+            except OSError as e:      # EIO: the client closed meanwhile
+                if e.errno == errno.EIO:
                     break
-                try:
-                    data = os.read(self._master_fd, min(_CHUNK, room))
-                except BlockingIOError:
-                    break
-                except OSError as e:      # EIO: the client closed meanwhile
-                    if e.errno == errno.EIO:
-                        break
-                    raise
-                if not data:
-                    break
-                self._feed(data)
-                moved += len(data)
-        out = self.link.host_read_available()
-        if not self._session_open:
-            self.bytes_discarded += len(out)
-            return moved
+                raise
+            if not data:
+                break
+            self._feed(data)
+            moved += len(data)
+        return moved
+
+    def _send(self, out: bytes) -> int:
+        """The line's bytes ``out`` after what the client has not taken yet, to the client; the bytes
+        moved."""
         if out:
             self._out += out
-        if self._out:
-            try:
-                n = os.write(self._master_fd, self._out)
-            except (BlockingIOError, OSError):
-                n = 0
-            del self._out[:n]
-            self.bytes_out += n
-            self._s_out += n
-            moved += n
-        return moved
+        if not self._out:
+            return 0
+        try:
+            n = os.write(self._master_fd, self._out)
+        except (BlockingIOError, OSError):
+            n = 0
+        del self._out[:n]
+        self.bytes_out += n
+        self._s_out += n
+        return n
 
     def _drain_input(self) -> None:
         """Read and drop what a departed client left in the pty (it is not delivered)."""
@@ -458,71 +472,88 @@ class TcpBridge(_Bridge):
         if self.closed:
             raise OSError("TcpBridge is closed")
         moved = 0
-        client = self._client
-        if client is not None and not self._eof:
-            while True:
-                room = self._room()
-                if not room:
-                    break
-                try:
-                    data = client.recv(min(_CHUNK, room))
-                except (BlockingIOError, InterruptedError):
-                    break
-                except OSError:
-                    self._drop_client("connection reset")
-                    client = None
-                    break
-                if not data:
-                    if self.link.host_pending() or self._out:
-                        self._eof = True       # half-close: answer what it sent, then close
-                        pending_s = self.link.host_out_waiting() * self.link.byte_time_us / US_PER_S
-                        self._linger_until = time.monotonic() + pending_s + HALF_CLOSE_GRACE_S
-                    else:
-                        self._drop_client("closed the connection")
-                        client = None
-                    break
-                self._feed(data)
-                moved += len(data)
-            if (client is not None and not self._eof and self._waiting
-                    and self.link.host_out_waiting() >= self.max_pending_bytes
-                    and self._discard_excess(client)):
-                # a flood, then a hang-up hidden behind it: its input beyond the line's bound
-                # was discarded to find the end (someone else is waiting for the line)
-                self._drop_client("closed the connection after a flood")
-                client = None
-            if client is not None and not self._eof and self._idle():
-                self._drop_client(f"idle for more than {self.idle_timeout_s:g} s")
-                client = None
+        if self._client is not None and not self._eof:
+            moved += self._receive(self._client)
+            self._drop_stuck_client()
         out = self.link.host_read_available()
-        if client is None:
+        if self._client is None:
             self.bytes_discarded += len(out)
         else:
-            if out:
-                self._out += out
-            if self._out:
-                try:
-                    n = client.send(self._out)
-                except (BlockingIOError, InterruptedError):
-                    n = 0
-                except OSError:
-                    self._drop_client("connection reset")
-                    client = None
-                    n = 0
-                if client is not None:
-                    del self._out[:n]
-                    self.bytes_out += n
-                    self._s_out += n
-                    moved += n
-            if client is not None and self._eof:
-                link = self.link
-                done = (not self._out and not link.host_pending()
-                        and link.clock.now_us >= link.host_out_done_us() + self.quiet_us)
-                if done or time.monotonic() > self._linger_until:
-                    with contextlib.suppress(OSError):
-                        client.shutdown(socket.SHUT_WR)
-                    self._drop_client("half-closed, answered" if done else "half-closed, gave up waiting")
+            moved += self._send(self._client, out)
+            if self._client is not None and self._eof:
+                self._end_half_close(self._client)
         self._accept()
         return moved
+
+    def _receive(self, client: socket.socket) -> int:
+        """What the client sent, onto the line (as much as it has room for); its end of the
+        connection: a half-close (answered first) or a hang-up. The bytes moved."""
+        moved = 0
+        while True:
+            room = self._room()
+            if not room:
+                break
+            try:
+                data = client.recv(min(_CHUNK, room))
+            except (BlockingIOError, InterruptedError):
+                break
+            except OSError:
+                self._drop_client("connection reset")
+                break
+            if not data:
+                if self.link.host_pending() or self._out:
+                    self._eof = True       # half-close: answer what it sent, then close
+                    pending_s = self.link.host_out_waiting() * self.link.byte_time_us / US_PER_S
+                    self._linger_until = time.monotonic() + pending_s + HALF_CLOSE_GRACE_S
+                else:
+                    self._drop_client("closed the connection")
+                break
+            self._feed(data)
+            moved += len(data)
+        return moved
+
+    def _drop_stuck_client(self) -> None:
+        """Drop a client that flooded the line and hung up behind the flood while another waits,
+        or that sent nothing for the idle timeout."""
+        client = self._client
+        if (client is not None and not self._eof and self._waiting
+                and self.link.host_out_waiting() >= self.max_pending_bytes
+                and self._discard_excess(client)):
+            # a flood, then a hang-up hidden behind it: its input beyond the line's bound
+            # was discarded to find the end (someone else is waiting for the line)
+            self._drop_client("closed the connection after a flood")
+            client = None
+        if client is not None and not self._eof and self._idle():
+            self._drop_client(f"idle for more than {self.idle_timeout_s:g} s")
+
+    def _send(self, client: socket.socket, out: bytes) -> int:
+        """The line's bytes ``out`` after what the client has not taken yet, to the client; the bytes
+        moved."""
+        if out:
+            self._out += out
+        if not self._out:
+            return 0
+        try:
+            n = client.send(self._out)
+        except (BlockingIOError, InterruptedError):
+            n = 0
+        except OSError:
+            self._drop_client("connection reset")
+            return 0
+        del self._out[:n]
+        self.bytes_out += n
+        self._s_out += n
+        return n
+
+    def _end_half_close(self, client: socket.socket) -> None:
+        """A half-closed client's connection shut once every answer went out (or the grace ran out)."""
+        link = self.link
+        done = (not self._out and not link.host_pending()
+                and link.clock.now_us >= link.host_out_done_us() + self.quiet_us)
+        if done or time.monotonic() > self._linger_until:
+            with contextlib.suppress(OSError):
+                client.shutdown(socket.SHUT_WR)
+            self._drop_client("half-closed, answered" if done else "half-closed, gave up waiting")
 
     def close(self) -> None:
         """Close the client connection and the listening socket."""

@@ -89,11 +89,11 @@ def twin_params(args: argparse.Namespace) -> dict[str, float]:
 
 
 def _check_out(path: Path, what: str, suffixes: tuple[str, ...]) -> None:
-    from humanoid_twin.cli.main import _check_writable
+    from humanoid_twin.cli.checked_outputs import check_writable
 
     if path.suffix.lower() not in suffixes:
         raise usage_error(f"{what} {path}: the file must end in {' or '.join(suffixes)}")
-    _check_writable(path, what)
+    check_writable(path, what)
 
 
 def _commit(tmp: Path, final: Path) -> None:
@@ -106,7 +106,7 @@ def _commit(tmp: Path, final: Path) -> None:
 
 
 def _temp(path: Path) -> Path:
-    from humanoid_twin.cli.main import temp_name
+    from humanoid_twin.outputs import temp_name
 
     return temp_name(path.expanduser())
 

@@ -18,16 +18,10 @@ from pathlib import Path
 from typing import Any
 
 from humanoid_twin.cli.argtypes import checked, degrees
+from humanoid_twin.cli.messages import usage_error
 from humanoid_twin.seeds import SEED_MAX
 
-EXIT_USAGE = 2
 CAN_INTERFACES = ("humanoid_twin", "virtual", "socketcan")
-
-
-def usage_error(message: str) -> SystemExit:
-    """``humanoid-twin: error: MESSAGE`` on stderr; the ``SystemExit`` (exit 2) to raise."""
-    sys.stderr.write(f"humanoid-twin: error: {message}\n")
-    return SystemExit(EXIT_USAGE)
 
 
 def cannot_write_in(directory: Path) -> str | None:
@@ -259,8 +253,8 @@ def rig_fields(args: argparse.Namespace, controllers: dict[str, Any]) -> dict[st
 
 def run_options(args: argparse.Namespace, controllers: dict[str, Any], files: dict[str, Any]) -> Any:
     """The :class:`~humanoid_twin.scenarios.RunOptions` of a parsed ``run`` (``files``: the
-    output fields, the temporary names the outputs are written under, cli/main.py's
-    ``_Outputs.open_all``)."""
+    output fields, the temporary names the outputs are written under:
+    :meth:`humanoid_twin.cli.checked_outputs.CheckedOutputs.open_all`)."""
     from humanoid_twin.scenarios import RunOptions
 
     return RunOptions(

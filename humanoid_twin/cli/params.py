@@ -13,7 +13,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from humanoid_twin.cli.options import usage_error
+from humanoid_twin.cli.messages import usage_error
 
 
 def add_params_options(p: argparse.ArgumentParser) -> None:
@@ -123,23 +123,38 @@ def cmd_params(args: argparse.Namespace) -> int:
     as_json = args.json or vars(args).get("json_action", False)
     action = args.params_action
     if action is None:
-        if as_json:
-            out = json.dumps({p.name: p.as_dict() for p in reg}, ensure_ascii=False)
-            sys.stdout.write(out + "\n")
-        else:
-            rows = [(p.name, p.unit, f"{p.default:.6g}", f"{p.min:.6g}", f"{p.max:.6g}", p.doc) for p in reg]
-            sys.stdout.write(_table(rows, ("name", "unit", "default", "min", "max", "doc")))
-        return 0
-    if action == "show":
-        values = _load(args.file)
-        if as_json:
-            sys.stdout.write(json.dumps(values) + "\n")
-        else:
-            rows = [(n, f"{v:.6g}", f"{reg.get(n).default:.6g}", reg.get(n).unit) for n, v in values.items()]
-            sys.stdout.write(_table(rows, ("name", "value", "default", "unit")) if rows
-                             else f"{args.file}: no parameters (every default)\n")
-        return 0
-    a, b = _load(args.a), _load(args.b)
+        _list(reg, as_json)
+    elif action == "show":
+        _show(reg, args.file, as_json)
+    else:
+        _diff(reg, args.a, args.b, as_json)
+    return 0
+
+
+def _list(reg: Any, as_json: bool) -> None:
+    """Every named parameter: its unit, default, bounds and what it is."""
+    if as_json:
+        out = json.dumps({p.name: p.as_dict() for p in reg}, ensure_ascii=False)
+        sys.stdout.write(out + "\n")
+    else:
+        rows = [(p.name, p.unit, f"{p.default:.6g}", f"{p.min:.6g}", f"{p.max:.6g}", p.doc) for p in reg]
+        sys.stdout.write(_table(rows, ("name", "unit", "default", "min", "max", "doc")))
+
+
+def _show(reg: Any, path: Path, as_json: bool) -> None:
+    """The values a parameter file sets, beside their defaults."""
+    values = _load(path)
+    if as_json:
+        sys.stdout.write(json.dumps(values) + "\n")
+    else:
+        rows = [(n, f"{v:.6g}", f"{reg.get(n).default:.6g}", reg.get(n).unit) for n, v in values.items()]
+        sys.stdout.write(_table(rows, ("name", "value", "default", "unit")) if rows
+                         else f"{path}: no parameters (every default)\n")
+
+
+def _diff(reg: Any, path_a: Path, path_b: Path, as_json: bool) -> None:
+    """The parameters two files set differently (a default where a file sets none)."""
+    a, b = _load(path_a), _load(path_b)
     changed = {}
     for name in sorted({*a, *b}):
         default = reg.get(name).default
@@ -150,7 +165,6 @@ def cmd_params(args: argparse.Namespace) -> int:
         sys.stdout.write(json.dumps({n: {"a": va, "b": vb} for n, (va, vb) in changed.items()}) + "\n")
     elif changed:
         rows = [(n, f"{va:.6g}", f"{vb:.6g}", reg.get(n).unit) for n, (va, vb) in changed.items()]
-        sys.stdout.write(_table(rows, ("name", str(args.a), str(args.b), "unit")))
+        sys.stdout.write(_table(rows, ("name", str(path_a), str(path_b), "unit")))
     else:
-        sys.stdout.write(f"{args.a} and {args.b} set the same values\n")
-    return 0
+        sys.stdout.write(f"{path_a} and {path_b} set the same values\n")

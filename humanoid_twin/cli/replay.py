@@ -19,6 +19,8 @@ from pathlib import Path
 from typing import Any
 
 from humanoid_twin.cli.argtypes import wall_seconds
+from humanoid_twin.cli.checked_outputs import CheckedOutputs
+from humanoid_twin.cli.messages import stop_reason
 from humanoid_twin.cli.options import (
     add_law_option,
     check_recording_outputs,
@@ -76,15 +78,47 @@ def _check_not_the_log(args: argparse.Namespace) -> None:
             raise usage_error(f"{flag} {path} is the log being replayed: name another file")
 
 
-def replay_command(args: argparse.Namespace, outputs: Any) -> int:
-    """``humanoid-twin replay``: every input checked (one line, exit 2) before ``outputs`` (the CLI's
-    temporary-name outputs, cli/main.py) creates anything; the replay; the outputs renamed."""
+def replay_command(args: argparse.Namespace) -> int:
+    """``humanoid-twin replay``: every input checked (one line, exit 2) before the outputs
+    (cli/checked_outputs.py: under temporary names) are created; the replay; the outputs renamed."""
     from humanoid_twin import signals
     from humanoid_twin.clock import US_PER_S
     from humanoid_twin.recording.readback import RrdReadError
-    from humanoid_twin.replay import ReplayError, ReplayTimeoutError, check_log, replay, replay_options
+    from humanoid_twin.replay import ReplayError, ReplayTimeoutError
 
     t0 = time.monotonic()
+    info, laws = _check_replay_inputs(args)
+    outputs = CheckedOutputs()
+    signals.on_hard_exit(outputs.discard)
+    try:
+        files = outputs.open_all(args.out, args, info.end_us / US_PER_S)
+        try:
+            res = _replay(args, info, laws, files, t0)
+        except ReplayError as exc:
+            raise usage_error(outputs.final_names(str(exc))) from None
+        except ReplayTimeoutError as exc:        # the outputs are discarded: nothing replaced
+            sys.stderr.write(f"humanoid-twin replay: {args.file}: {exc} (--wall-timeout)\n")
+            return 1
+        except KeyboardInterrupt as exc:         # SIGINT / SIGTERM: the files closed whole, kept
+            outputs.commit()
+            sys.stderr.write(f"humanoid-twin replay: {stop_reason(exc)}{outputs.kept()}\n")
+            return signals.exit_code(exc)
+        except (OSError, RrdReadError) as exc:
+            text = " ".join(outputs.final_names(str(exc)).split())[:500]
+            sys.stderr.write(f"humanoid-twin replay: error: cannot write the outputs: {text}; no file "
+                             "replaced\n")
+            return 1
+        outputs.commit()
+    finally:
+        outputs.discard()
+    return _report(args, res, outputs)
+
+
+def _check_replay_inputs(args: argparse.Namespace) -> tuple[Any, Any]:
+    """The options, the outputs' names and the log (a twin its meta can rebuild, the laws it names
+    given the same here): one line, exit 2. Returns the log's description and the laws."""
+    from humanoid_twin.replay import ReplayError, check_log, replay_options
+
     if args.seed is not None and not 0 <= args.seed <= SEED_MAX:
         raise usage_error(f"--seed {args.seed}: must be 0..{SEED_MAX}")
     check_recording_outputs(args)
@@ -95,34 +129,23 @@ def replay_command(args: argparse.Namespace, outputs: Any) -> int:
         replay_options(args.file, info, seed=args.seed, laws=laws, can_interface=args.can_interface)
     except ReplayError as exc:
         raise usage_error(str(exc)) from None
-    signals.on_hard_exit(outputs.discard)
-    try:
-        files = outputs.open_all(args.out, args, info.end_us / US_PER_S)
-        try:
-            res = replay(args.file, args.seed, laws=laws, can_interface=args.can_interface, out=files["out"],
-                         can_log=files["can_log"], can_log_name=files["can_log_name"], info=info,
-                         wall_timeout=None if args.wall_timeout is None
-                         else max(0.0, args.wall_timeout - (time.monotonic() - t0)))
-        except ReplayError as exc:
-            raise usage_error(outputs.final_names(str(exc))) from None
-        except ReplayTimeoutError as exc:        # the outputs are discarded: nothing replaced
-            sys.stderr.write(f"humanoid-twin replay: {args.file}: {exc} (--wall-timeout)\n")
-            return 1
-        except KeyboardInterrupt as exc:         # SIGINT / SIGTERM: the files closed whole, kept
-            outputs.commit()
-            kept = " ".join(str(p) for p in outputs.final.values())
-            why = "terminated (SIGTERM)" if isinstance(exc, signals.Terminated) else "interrupted"
-            sys.stderr.write(f"humanoid-twin replay: {why}" + (f"; recorded so far: {kept}" if kept else "")
-                             + "\n")
-            return signals.exit_code(exc)
-        except (OSError, RrdReadError) as exc:
-            text = " ".join(outputs.final_names(str(exc)).split())[:500]
-            sys.stderr.write(f"humanoid-twin replay: error: cannot write the outputs: {text}; no file "
-                             "replaced\n")
-            return 1
-        outputs.commit()
-    finally:
-        outputs.discard()
+    return info, laws
+
+
+def _replay(args: argparse.Namespace, info: Any, laws: Any, files: dict[str, Any], t0: float) -> Any:
+    """The replay into ``files`` (the outputs' temporary names), its ``--wall-timeout`` counted
+    from ``t0`` (the command's start); its result."""
+    from humanoid_twin.replay import replay
+
+    return replay(args.file, args.seed, laws=laws, can_interface=args.can_interface, out=files["out"],
+                  can_log=files["can_log"], can_log_name=files["can_log_name"], info=info,
+                  wall_timeout=None if args.wall_timeout is None
+                  else max(0.0, args.wall_timeout - (time.monotonic() - t0)))
+
+
+def _report(args: argparse.Namespace, res: Any, outputs: CheckedOutputs) -> int:
+    """The files written, the result (``--json``: one JSON object), the first difference; the exit
+    code."""
     written = {key: str(path) for key, path in outputs.final.items()}
     for path in written.values():
         sys.stderr.write(f"humanoid-twin replay: wrote {path}\n")

@@ -117,13 +117,38 @@ def plan_sweep(args: argparse.Namespace, parser: argparse.ArgumentParser
     """Check every input of ``sweep`` (``parser``: the CLI's, whose ``run`` checks each value);
     returns the grid, the seeds and the task. Raises :class:`SweepError` (or exits 2 through the
     parser) before anything is written."""
+    run_args = list(args.run_args)
+    label = _resolve_scenario(args)       # the table's scenario: the reference as the user gave it
+    base, given = _check_run_args(args, parser, run_args)
+    params, seeds = _grid(args)
+    args.draws = _randomize(args)          # --randomize ... --samples N: the drawn values
+    for name, values in params.items():
+        _check_param(args, parser, run_args, name, values, base, given)
+    _check_size(args, params, seeds)
+    _check_every_point(args, parser, run_args, params, seeds)
+    _check_table(args.out)
+    _check_where(args)
+    _check_plot(args, params)
+    recordings = None if args.recordings is None else str(args.recordings)
+    return params, seeds, RunCli(args.scenario, tuple(run_args), recordings, args.timeout, label=label)
+
+
+def _resolve_scenario(args: argparse.Namespace) -> str:
+    """A user's file (``FILE.py:NAME``) made absolute in ``args.scenario``: found by every run,
+    whatever its cwd. Returns the scenario as the user gave it (the table's)."""
     from humanoid_twin.scenarios import split_reference
 
-    run_args = list(args.run_args)
-    label = args.scenario                     # the table's scenario: the reference as the user gave it
+    label = args.scenario
     where, name = split_reference(args.scenario)
-    if where.endswith(".py"):                 # a user's file: found by every run, whatever its cwd
+    if where.endswith(".py"):
         args.scenario = f"{Path(where).expanduser().resolve()}:{name}"
+    return label
+
+
+def _check_run_args(args: argparse.Namespace, parser: argparse.ArgumentParser, run_args: list[str]
+                    ) -> tuple[dict[str, Any], dict[str, Any]]:
+    """The run options given for every run parsed by ``run``'s parser; those a sweep sets itself
+    refused. Returns ``run``'s defaults and the values given."""
     base = vars(parser.parse_args(["run", args.scenario, "--no-record"]))
     given = vars(parser.parse_args(["run", args.scenario, "--no-record", *run_args]))
     if given["can_log"] is not None:
@@ -134,6 +159,11 @@ def plan_sweep(args: argparse.Namespace, parser: argparse.ArgumentParser
         raise SweepError("--out is the sweep's table; use --recordings DIR for the runs' recordings")
     if given["seed"] != base["seed"] or any(a.startswith("--seed") for a in run_args):
         raise SweepError("--seed: use --seeds N (seeds 0..N-1) or --param seed=S1,S2,...")
+    return base, given
+
+
+def _grid(args: argparse.Namespace) -> tuple[dict[str, list[str]], list[int]]:
+    """The ``--param`` s (by column name) and the seeds (``--seeds N`` or ``--param seed=...``)."""
     # a parameter's column is named as the option's dest (pic_mhz): --param pic-mhz or pic_mhz
     params = {n.replace("-", "_"): v for n, v in parse_params(args.param).items()}
     if len(params) != len(args.param):
@@ -146,20 +176,28 @@ def plan_sweep(args: argparse.Namespace, parser: argparse.ArgumentParser
             seeds = [int(v) for v in params.pop("seed")]
         except ValueError:
             raise SweepError("--param seed: seeds are whole numbers") from None
-    args.draws = _randomize(args)          # --randomize ... --samples N: the drawn values
-    for name, values in params.items():
-        if is_set_name(name):              # a named parameter or a scenario's field: --set NAME=V
-            _check_set_param(name, values)
-            continue
-        dest = name
-        if dest not in base or dest in NOT_PARAMS:
-            options = sorted(d.replace("_", "-") for d in base if d not in NOT_PARAMS)
-            raise SweepError(f"--param {flag(name)[2:]}: not a run option a sweep can vary (choose from "
-                             f"{' '.join(options)}){_did_you_mean(flag(name)[2:], options)}")
-        if given[dest] != base[dest]:
-            raise SweepError(f"{flag(name)} is given both as a run option and as --param {flag(name)[2:]}")
-        for v in values:      # run's own checks, one line and exit 2 on a bad value
-            parser.parse_args(["run", args.scenario, "--no-record", *run_args, f"{flag(name)}={v}"])
+    return params, seeds
+
+
+def _check_param(args: argparse.Namespace, parser: argparse.ArgumentParser, run_args: list[str], name: str,
+                 values: list[str], base: dict[str, Any], given: dict[str, Any]) -> None:
+    """One ``--param``: a named parameter or a scenario's field (``--set NAME=V``), or a run option
+    a sweep can vary, not also given as a run option, each value through ``run``'s own checks."""
+    if is_set_name(name):              # a named parameter or a scenario's field: --set NAME=V
+        _check_set_param(name, values)
+        return
+    if name not in base or name in NOT_PARAMS:
+        options = sorted(d.replace("_", "-") for d in base if d not in NOT_PARAMS)
+        raise SweepError(f"--param {flag(name)[2:]}: not a run option a sweep can vary (choose from "
+                         f"{' '.join(options)}){_did_you_mean(flag(name)[2:], options)}")
+    if given[name] != base[name]:
+        raise SweepError(f"{flag(name)} is given both as a run option and as --param {flag(name)[2:]}")
+    for v in values:      # run's own checks, one line and exit 2 on a bad value
+        parser.parse_args(["run", args.scenario, "--no-record", *run_args, f"{flag(name)}={v}"])
+
+
+def _check_size(args: argparse.Namespace, params: dict[str, list[str]], seeds: list[int]) -> None:
+    """At most :data:`MAX_POINTS` runs; every seed in range."""
     n_points = len(seeds) * max(1, len(args.draws))
     for values in params.values():
         n_points *= len(values)
@@ -167,46 +205,59 @@ def plan_sweep(args: argparse.Namespace, parser: argparse.ArgumentParser
         raise SweepError(f"{n_points} runs: a sweep runs at most {MAX_POINTS} (split it)")
     if any(not 0 <= sd <= SEED_MAX for sd in seeds):
         raise SweepError(f"--param seed: seeds are 0..{SEED_MAX}")
-    _check_every_point(args, parser, run_args, params, seeds)
-    table_format(args.out)
-    _writable_dir(args.out, "--out")
-    if args.out.exists():
+
+
+def _check_table(out: Path) -> None:
+    """``--out``: a table's format, in a writable place; an existing file is a sweep table."""
+    table_format(out)
+    _writable_dir(out, "--out")
+    if out.exists():
         try:
-            rows = read_table(args.out)
+            rows = read_table(out)
         except Exception as exc:  # noqa: BLE001 - whatever the reader says, it is not a table
-            raise SweepError(f"--out {args.out} exists and is not a sweep table ({exc})") from None
-        _check_is_sweep_table(args.out, rows)
+            raise SweepError(f"--out {out} exists and is not a sweep table ({exc})") from None
+        _check_is_sweep_table(out, rows)
+
+
+def _check_where(args: argparse.Namespace) -> None:
+    """Where the runs run (``--backend``, a Ray cluster's ``--address``) and where their
+    recordings go (``--recordings DIR``: a directory, or one that can be made, writable)."""
     check_backend(args.backend)
     if args.address is not None and args.backend != "ray":
         raise SweepError("--address is for --backend ray")
     if args.backend == "ray" and args.address is not None:
         check_ray_address(args.address)
-    if args.recordings is not None:
-        if args.recordings.exists() and not args.recordings.is_dir():
-            raise SweepError(f"--recordings {args.recordings} is not a directory")
-        where = args.recordings if args.recordings.exists() else args.recordings.resolve().parent
-        while not where.exists():
-            where = where.parent
-        if not os.access(where, os.W_OK):
-            raise SweepError(f"--recordings {args.recordings} is not writable")
-        why = cannot_write_in(where)
-        if why is not None:
-            raise SweepError(f"--recordings {args.recordings}: cannot write in {where}: {why}")
-    if args.plot is not None:
-        if args.plot.suffix.lower() != ".png":
-            raise SweepError(f"--plot {args.plot}: a plot ends in .png")
-        _writable_dir(args.plot, "--plot")
-        if args.metric is None or args.x is None:
-            raise SweepError("--plot needs --metric KEY and --x PARAM")
-        args.x = args.x.replace("-", "_")     # the column's name (--x pic-mhz: pic_mhz)
-        if args.x not in params and args.x != "seed" and not any(r.split("=")[0].strip() == args.x
-                                                                  for r in args.randomize):
-            given = " ".join(params) or "it has no --param"
-            raise SweepError(f"--x {args.x}: not a --param of this sweep ({given})")
-    elif args.metric is not None or args.x is not None:
-        raise SweepError("--metric and --x go with --plot FILE.png")
-    recordings = None if args.recordings is None else str(args.recordings)
-    return params, seeds, RunCli(args.scenario, tuple(run_args), recordings, args.timeout, label=label)
+    if args.recordings is None:
+        return
+    if args.recordings.exists() and not args.recordings.is_dir():
+        raise SweepError(f"--recordings {args.recordings} is not a directory")
+    where = args.recordings if args.recordings.exists() else args.recordings.resolve().parent
+    while not where.exists():
+        where = where.parent
+    if not os.access(where, os.W_OK):
+        raise SweepError(f"--recordings {args.recordings} is not writable")
+    why = cannot_write_in(where)
+    if why is not None:
+        raise SweepError(f"--recordings {args.recordings}: cannot write in {where}: {why}")
+
+
+def _check_plot(args: argparse.Namespace, params: dict[str, list[str]]) -> None:
+    """``--plot FILE.png`` with ``--metric KEY`` and ``--x PARAM`` (a parameter of this sweep;
+    ``args.x`` made its column's name), or none of the three."""
+    if args.plot is None:
+        if args.metric is not None or args.x is not None:
+            raise SweepError("--metric and --x go with --plot FILE.png")
+        return
+    if args.plot.suffix.lower() != ".png":
+        raise SweepError(f"--plot {args.plot}: a plot ends in .png")
+    _writable_dir(args.plot, "--plot")
+    if args.metric is None or args.x is None:
+        raise SweepError("--plot needs --metric KEY and --x PARAM")
+    args.x = args.x.replace("-", "_")     # the column's name (--x pic-mhz: pic_mhz)
+    if args.x not in params and args.x != "seed" and not any(r.split("=")[0].strip() == args.x
+                                                              for r in args.randomize):
+        given = " ".join(params) or "it has no --param"
+        raise SweepError(f"--x {args.x}: not a --param of this sweep ({given})")
 
 
 def _did_you_mean(name: str, choices: list[str]) -> str:
@@ -262,7 +313,7 @@ def _check_every_point(args: argparse.Namespace, parser: argparse.ArgumentParser
     run starts: one line, exit 2 (issue 24). A seed is checked once, on the first point."""
     import itertools
 
-    from humanoid_twin.cli.main import check_run_inputs
+    from humanoid_twin.cli.run_checks import check_run_inputs
     from humanoid_twin.scenarios import arm_wall_timeout, disarm_wall_timeout
 
     names = list(params)
@@ -378,9 +429,7 @@ def sweep_command(args: argparse.Namespace, parser: argparse.ArgumentParser) -> 
     points = randomized_grid(params, args.draws, seeds)     # the grid x the drawn robots x the seeds
     progress = None if args.no_progress else sys.stderr
     if progress is not None:
-        where = args.address or "a local Ray" if args.backend == "ray" else "this machine"
-        progress.write(f"sweep: {_runs(len(points))} of {task.label or args.scenario} on {where}"
-                       f"{f' ({args.jobs} jobs)' if args.jobs else ''} into {args.out}\n")
+        _announce(args, task, len(points), progress)
 
     try:
         # SIGINT / SIGTERM (humanoid_twin/signals.py): the runs in flight are stopped within ~2 s,
@@ -397,17 +446,31 @@ def sweep_command(args: argparse.Namespace, parser: argparse.ArgumentParser) -> 
         return 2
     failed = sum(bool(r.get("error")) for r in rows)
     _say(args, f"{args.out}: {_runs(len(rows))}, {failed} failed")
-    if args.plot is not None:
-        from humanoid_twin.sweep.plot import plot_sweep
-
-        title = f"sweep {task.label or args.scenario}: {args.metric} against {args.x}"
-        try:
-            plot_sweep(rows, args.x, args.metric, args.plot, list(params) + ["seed"], title=title)
-        except SweepError as exc:
-            sys.stderr.write(f"humanoid-twin: error: {exc}\n")
-            return 2
-        _say(args, f"{args.plot}: {args.metric} against {args.x}")
+    if args.plot is not None and not _plot(args, rows, list(params), task):
+        return 2
     return exit_code(failed)
+
+
+def _announce(args: argparse.Namespace, task: RunCli, n_runs: int, progress: Any) -> None:
+    """The sweep's first progress line: how many runs of what, where, into which table."""
+    where = args.address or "a local Ray" if args.backend == "ray" else "this machine"
+    progress.write(f"sweep: {_runs(n_runs)} of {task.label or args.scenario} on {where}"
+                   f"{f' ({args.jobs} jobs)' if args.jobs else ''} into {args.out}\n")
+
+
+def _plot(args: argparse.Namespace, rows: list[dict[str, Any]], names: list[str], task: RunCli) -> bool:
+    """``--plot``: the table's ``--metric`` against ``--x`` (sweep/plot.py); False when the plot
+    cannot be drawn (one line said)."""
+    from humanoid_twin.sweep.plot import plot_sweep
+
+    title = f"sweep {task.label or args.scenario}: {args.metric} against {args.x}"
+    try:
+        plot_sweep(rows, args.x, args.metric, args.plot, names + ["seed"], title=title)
+    except SweepError as exc:
+        sys.stderr.write(f"humanoid-twin: error: {exc}\n")
+        return False
+    _say(args, f"{args.plot}: {args.metric} against {args.x}")
+    return True
 
 
 def _say(args: argparse.Namespace, line: str) -> None:

@@ -208,6 +208,33 @@ def exe_traj(
     other board the plan moves or sets gains for (e.g. SCU 5's torso roll in
     ``levantar_perna``), in address order.
     """
+    tt_in, pos, kk = _check_plan(t, pos_apply, k)
+    n_m = tt_in.shape[0]
+    scus_t = _scus(_driven(pos, kk) if scus is None else scus)
+    if np.any(~np.isfinite(pos[[s - 1 for s in scus_t]])):
+        raise ValueError("pos_apply has non-finite values for the SCUs driven")
+    ticks, textra = _check_times(tt_in, Textra, dt)
+    tab = tables or default_tables()
+    commands = [[servo_command(s, pos[s - 1, :, m], tab) for s in scus_t] for m in range(n_m)]
+
+    sampler = _Sampler(H, scus_t)
+    t0 = timebase.now(H)
+    sent = _Sent()
+    for m in range(n_m):
+        if kk is not None:
+            sent.gains(H, scus_t, kk[:, :, m, :])
+        sent.period(H, scus_t, ticks[m])
+        t_start = timebase.now(H)
+        for j, s in enumerate(scus_t):
+            apply_joint(H, s, PARAM_POSITION, commands[m][j], "set positions")
+        t_end = t_start + tt_in[m] + (textra if m == n_m - 1 else 0.0)
+        sampler.run_until(t_end, t0, dt)
+    return sampler.result()
+
+
+def _check_plan(t: Any, pos_apply: Any, k: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+    """``exe_traj``'s plan as arrays, their shapes checked: the motions' durations, the positions
+    (N_SCU x N_SERVOS x N_MOTIONS; one motion's N_SCU x N_SERVOS too), the gains (or None)."""
     tt_in = np.atleast_1d(np.asarray(t, dtype=float))
     if tt_in.ndim != 1:
         raise ValueError(f"t must be a vector of motion durations, got shape {tt_in.shape}")
@@ -225,14 +252,12 @@ def exe_traj(
         kk = np.asarray(k)
         if kk.shape != (N_SCU, N_SERVOS, n_m, 4):
             raise ValueError(f"k must be {N_SCU} x {N_SERVOS} x {n_m} x 4, got shape {kk.shape}")
-    if scus is None:
-        used = {s for s in SCUS if np.any(pos[s - 1] != 0)}
-        if kk is not None:
-            used |= {s for s in SCUS if np.any(kk[s - 1] != 0)}
-        scus = sorted(used | set(LEG_SCUS))
-    scus_t = _scus(scus)
-    if np.any(~np.isfinite(pos[[s - 1 for s in scus_t]])):
-        raise ValueError("pos_apply has non-finite values for the SCUs driven")
+    return tt_in, pos, kk
+
+
+def _check_times(tt_in: np.ndarray, Textra: Any, dt: float) -> tuple[list[int], float]:
+    """Each motion's period in ticks of 20 ms (a positive duration that fits the byte), ``Textra``
+    and ``dt`` (>= 0 s); returns the periods and ``Textra``."""
     ticks = [period_ticks(v) for v in tt_in]
     if any(v <= 0 for v in tt_in):
         raise ValueError(f"every motion needs a positive duration, got t = {tt_in.tolist()}")
@@ -241,30 +266,38 @@ def exe_traj(
         raise ValueError(f"Textra must be >= 0 s, got {Textra!r}")
     if not (math.isfinite(dt) and dt >= 0):
         raise ValueError(f"dt must be >= 0 s, got {dt!r}")
-    tab = tables or default_tables()
-    commands = [[servo_command(s, pos[s - 1, :, m], tab) for s in scus_t] for m in range(n_m)]
+    return ticks, textra
 
-    sampler = _Sampler(H, scus_t)
-    t0 = timebase.now(H)
-    sent_k: dict[int, np.ndarray] = {}
-    sent_ticks: dict[int, int] = {}
-    for m in range(n_m):
-        if kk is not None:
-            for s in scus_t:
-                ks = kk[s - 1, :, m, :]
-                if s not in sent_k or not np.array_equal(sent_k[s], ks):
-                    send_gains(H, s, ks)
-                    sent_k[s] = ks
-        for s in scus_t:
-            if sent_ticks.get(s) != ticks[m]:
-                apply_joint(H, s, PARAM_VELOCITY, [ticks[m]] * 3, "set period")
-                sent_ticks[s] = ticks[m]
-        t_start = timebase.now(H)
-        for j, s in enumerate(scus_t):
-            apply_joint(H, s, PARAM_POSITION, commands[m][j], "set positions")
-        t_end = t_start + tt_in[m] + (textra if m == n_m - 1 else 0.0)
-        sampler.run_until(t_end, t0, dt)
-    return sampler.result()
+
+def _driven(pos: np.ndarray, kk: np.ndarray | None) -> list[int]:
+    """The SCUs in use: the legs and hips, and every other board the plan moves or sets gains for."""
+    used = {s for s in SCUS if np.any(pos[s - 1] != 0)}
+    if kk is not None:
+        used |= {s for s in SCUS if np.any(kk[s - 1] != 0)}
+    return sorted(used | set(LEG_SCUS))
+
+
+class _Sent:
+    """What ``exe_traj`` last sent each SCU (its gains, its period): sent again only when changed."""
+
+    def __init__(self) -> None:
+        self.k: dict[int, np.ndarray] = {}
+        self.ticks: dict[int, int] = {}
+
+    def gains(self, H: Any, scus: Sequence[int], k_m: np.ndarray) -> None:
+        """One motion's gains and control types (N_SCU x N_SERVOS x 4) to each of ``scus``."""
+        for s in scus:
+            ks = k_m[s - 1]
+            if s not in self.k or not np.array_equal(self.k[s], ks):
+                send_gains(H, s, ks)
+                self.k[s] = ks
+
+    def period(self, H: Any, scus: Sequence[int], ticks: int) -> None:
+        """One motion's period (ticks of 20 ms) to each of ``scus``."""
+        for s in scus:
+            if self.ticks.get(s) != ticks:
+                apply_joint(H, s, PARAM_VELOCITY, [ticks] * 3, "set period")
+                self.ticks[s] = ticks
 
 
 def recycle(

@@ -302,39 +302,57 @@ def levantar_perna(
     s = _angle("shift", shift, 0.0, 30.0, "the roll joints' structure limit")
     tr = _angle("torso", torso, 0.0, 30.0, "the torso roll's structure limit")
     flex = {"hip_pitch": -a / 2, "knee": a, "ankle_pitch": -a / 2}
-    legs = (R_LEG, L_LEG, R_HIP, L_HIP)
     if perna in (1, 2) and not isinstance(perna, bool):
-        lifted = 0 if perna == 1 else 1          # side index: 0 right, 1 left
-        support_row = L_LEG if lifted == 0 else R_LEG
-        lifted_row = R_LEG if lifted == 0 else L_LEG
-        sign = 1.0 if lifted == 0 else -1.0      # + = toward the left leg
-        pos, k, t = empty_plan(6)
-        for m in (SHIFT, LIFT, HOLD, LOWER):
-            for side in (0, 1):
-                extra = flex if (side == lifted and m in (LIFT, HOLD)) else {}
-                leg_pose(pos, m, side, hip_roll=-sign * s, ankle_roll=sign * s, **extra)
-            pos[BODY, TORSO_ROLL, m] = -sign * tr   # roll about +x: negative leans the top left
-        for m in range(6):
-            for row in (*legs, BODY):
-                ctype = ControlType.LOCOMOTION_CONTROL
-                if row == support_row and m in BALANCE_MOTIONS:
-                    ctype = ControlType.BALANCE_CONTROL
-                elif m == REST and row != BODY:
-                    ctype = ControlType.NO_CONTROL
-                _set_k(k, row, m, ctype)
-        landing = control_row(ControlType.REACTION_CONTROL, LANDING_GAINS)[ANKLE_ROLL]
-        for m in LANDING_MOTIONS:
-            k[lifted_row, ANKLE_ROLL, m] = landing
-        t[:] = T
-        t[SHIFT] = min(SHIFT_PERIODS * T, MAX_PERIOD_S)
-        t[RETURN] = min(RETURN_PERIODS * T, MAX_PERIOD_S)
-        return pos, k, t
+        return _lift_one_leg(0 if perna == 1 else 1, T, flex, s, tr)     # side index: 0 right, 1 left
+    return _flex_both_legs(T, flex)
+
+
+def _lift_one_leg(lifted: int, T: float, flex: dict[str, float], s: float, tr: float
+                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``levantar_perna``'s 6 motions lifting leg ``lifted`` (0 right, 1 left): the poses (the
+    shift ``s`` and torso lean ``tr`` toward the support leg, the lifted leg flexed by ``flex``),
+    the control types, the periods."""
+    pos, k, t = empty_plan(6)
+    sign = 1.0 if lifted == 0 else -1.0      # + = toward the left leg
+    for m in (SHIFT, LIFT, HOLD, LOWER):
+        for side in (0, 1):
+            extra = flex if (side == lifted and m in (LIFT, HOLD)) else {}
+            leg_pose(pos, m, side, hip_roll=-sign * s, ankle_roll=sign * s, **extra)
+        pos[BODY, TORSO_ROLL, m] = -sign * tr   # roll about +x: negative leans the top left
+    _lift_controls(k, lifted)
+    t[:] = T
+    t[SHIFT] = min(SHIFT_PERIODS * T, MAX_PERIOD_S)
+    t[RETURN] = min(RETURN_PERIODS * T, MAX_PERIOD_S)
+    return pos, k, t
+
+
+def _lift_controls(k: np.ndarray, lifted: int) -> None:
+    """The control types of the 6 motions lifting leg ``lifted``: LOCOMOTION_CONTROL, BALANCE_CONTROL
+    on the support leg's board while the other foot is up, NO_CONTROL on the legs and hips at rest,
+    REACTION_CONTROL on the lifted foot's lateral joint as it lands."""
+    support_row = L_LEG if lifted == 0 else R_LEG
+    lifted_row = R_LEG if lifted == 0 else L_LEG
+    for m in range(6):
+        for row in (R_LEG, L_LEG, R_HIP, L_HIP, BODY):
+            ctype = ControlType.LOCOMOTION_CONTROL
+            if row == support_row and m in BALANCE_MOTIONS:
+                ctype = ControlType.BALANCE_CONTROL
+            elif m == REST and row != BODY:
+                ctype = ControlType.NO_CONTROL
+            _set_k(k, row, m, ctype)
+    landing = control_row(ControlType.REACTION_CONTROL, LANDING_GAINS)[ANKLE_ROLL]
+    for m in LANDING_MOTIONS:
+        k[lifted_row, ANKLE_ROLL, m] = landing
+
+
+def _flex_both_legs(T: float, flex: dict[str, float]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``levantar_perna`` of both legs: 3 motions (flex, hold, return), LOCOMOTION_CONTROL."""
     pos, k, t = empty_plan(3)
     for side in (0, 1):
         for m in (0, 1):
             leg_pose(pos, m, side, **flex)
     for m in range(3):
-        for row in legs:
+        for row in (R_LEG, L_LEG, R_HIP, L_HIP):
             _set_k(k, row, m, ControlType.LOCOMOTION_CONTROL)
     t[:] = T
     return pos, k, t

@@ -21,6 +21,7 @@ import math
 import numbers
 import sys
 from collections.abc import Callable, Iterator, Mapping, Sequence
+from functools import partial
 from importlib import resources
 from pathlib import Path
 from typing import Any
@@ -121,6 +122,52 @@ def _load_model(path: Path | None, params: Mapping[str, float] | None = None
     return model, warnings
 
 
+def _named_params(params: Mapping[str, float] | None
+                  ) -> tuple[dict[str, float], dict[str, dict[str, float]], dict[str, float]]:
+    """The named parameters checked (:class:`~humanoid_twin.params.ParamError` on a bad one): the
+    non-default ones, by kind (kind -> target -> value), and the model's own (set through MjSpec)."""
+    by_kind: dict[str, dict[str, float]] = {}
+    model_values: dict[str, float] = {}
+    if not params:
+        return {}, by_kind, model_values
+    from humanoid_twin.params import registry
+    from humanoid_twin.plant.model_params import MODEL_KINDS
+
+    reg = registry()
+    non_defaults = reg.non_defaults(reg.check(params))
+    for name, v in non_defaults.items():
+        p = reg.get(name)
+        by_kind.setdefault(p.kind, {})[p.target] = v
+        if p.kind in MODEL_KINDS:
+            model_values[name] = v
+    return non_defaults, by_kind, model_values
+
+
+def _need(m: Any, path: Path, kind: mujoco.mjtObj, name: str) -> int:
+    """The id of the ``kind`` named ``name`` in model ``m`` (read from ``path``); PlantError when
+    it has none."""
+    idx = mujoco.mj_name2id(m, kind, name)
+    if idx < 0:
+        raise PlantError(f"{path}: the model has no {kind.name[6:].lower()} named {name!r}")
+    return idx
+
+
+def _check_pulses(scu: int, pulses_us: Sequence[int | None]) -> None:
+    """Three pulse widths, each :data:`_PULSE_MIN_US`..:data:`_PULSE_MAX_US` us or None."""
+    try:
+        n = len(pulses_us)
+    except TypeError:
+        n = -1
+    if n != hardware.N_SERVOS:
+        raise PlantInputError(f"SCU {scu}: need a sequence of 3 pulses, got {pulses_us!r}")
+    lo = _PULSE_MIN_US
+    hi = _PULSE_MAX_US
+    for p in pulses_us:
+        if p is not None and (isinstance(p, bool) or not isinstance(p, numbers.Real)
+                              or not lo <= p <= hi):
+            raise PlantInputError(f"SCU {scu}: pulse width must be {lo}..{hi} us or None, got {p!r}")
+
+
 class Plant(BoardIO):
     """The MuJoCo robot as the Slave boards see it (servo cables and foot sensors).
 
@@ -141,20 +188,7 @@ class Plant(BoardIO):
         given = Path(model_path) if model_path is not None else None
         path = given if given is not None else DEFAULT_MODEL
         self.model_path = path
-        self.params: dict[str, float] = {}
-        by_kind: dict[str, dict[str, float]] = {}       # kind -> target -> value (the non-defaults)
-        model_values: dict[str, float] = {}             # the model's own: set through MjSpec
-        if params:
-            from humanoid_twin.params import registry
-            from humanoid_twin.plant.model_params import MODEL_KINDS
-
-            reg = registry()
-            self.params = reg.non_defaults(reg.check(params))
-            for name, v in self.params.items():
-                p = reg.get(name)
-                by_kind.setdefault(p.kind, {})[p.target] = v
-                if p.kind in MODEL_KINDS:
-                    model_values[name] = v
+        self.params, by_kind, model_values = _named_params(params)
         self.model, self.load_warnings = _load_model(given, model_values)
         self.data = mujoco.MjData(self.model)
         self.seed = int(seed)
@@ -167,13 +201,46 @@ class Plant(BoardIO):
         self._clock: Any = clock
         self.step_ns_total = 0      # wall time spent in mj_step (boards subtract it from their task time)
 
-        def need(kind: mujoco.mjtObj, name: str) -> int:
-            idx = mujoco.mj_name2id(m, kind, name)
-            if idx < 0:
-                raise PlantError(f"{path}: the model has no {kind.name[6:].lower()} named {name!r}")
-            return idx
+        need = partial(_need, m, path)
+        self._find_servos(need)
+        self._powered = [True] * m.nu
+        self._find_feet(need)
+        self._truth = self._truth_probe()
+        self._drawing = Drawing(m, self.data, self._pad_of_geom)
+        # the boards' ADC front end (compiled): reads these MjData arrays in C
+        d = self.data
+        self._sense = SensorFrontEnd(d.qpos, d.qvel, d.actuator_force, d.sensordata)
+        self._qpos = d.qpos         # MjData's own arrays (fixed for its life): the truth's cache key
+        self._qvel = d.qvel
 
-        # per SCU: (qpos adr, dof adr, actuator id, sign, stall, damping) x 3
+        # the hardware: potentiometer offsets, drawn once per plant (what calibration estimates)
+        ss = np.random.SeedSequence(self.seed)
+        s_hw, self._s_pot, self._s_force = ss.spawn(3)
+        offsets = np.random.default_rng(s_hw).uniform(-C.POT_OFFSET_RANGE_DEG, C.POT_OFFSET_RANGE_DEG,
+                                                      size=(N_SCU, hardware.N_SERVOS))
+        self.pot_b_true_deg: dict[int, tuple[float, float, float]] = {
+            scu: tuple(hardware.POT_B_NOMINAL_DEG + float(o) for o in offsets[scu - 1])  # type: ignore[misc]
+            for scu in hardware.SERVO_JOINTS
+        }
+        self._set_sensor_params(by_kind, need)
+        self._tilt_deg = 0.0
+        self._tilt_profile: Callable[[float], float] | None = None
+        # injected faults (humanoid_twin/faults.py, docs/supervisor.md): extra force noise,
+        # frozen force sensors, jammed servos
+        self._force_fault = False
+        self._force_noise_counts = 0
+        self._force_fault_rng = np.random.default_rng(ss.spawn(1)[0])
+        # the body board's inclinometer and gyroscope, with their biases (imu.*_bias_*)
+        bias = tuple(by_kind.get(f"imu.{b}", {}).get("", 0.0) for b in _IMU_BIASES)
+        self._imu = TrunkImu(m, ss.spawn(1)[0], self._sense, bias=bias if any(bias) else None)
+        self._force_stuck: dict[int, list[int] | None] = {}
+        self._stuck_actuators: set[int] = set()
+        self.reset()
+
+    def _find_servos(self, need: Callable[[mujoco.mjtObj, str], int]) -> None:
+        """Each SCU's three servos in the model: (qpos adr, dof adr, actuator id, sign, stall,
+        damping) x 3, and each actuator's gain."""
+        m, path = self.model, self.model_path
         self._servo: dict[int, tuple[tuple[int, int, int, int, float, float], ...]] = {}
         self._kp = np.zeros(m.nu)
         for scu, joints in hardware.SERVO_JOINTS.items():
@@ -190,9 +257,11 @@ class Plant(BoardIO):
                 rows.append((int(m.jnt_qposadr[j]), int(m.jnt_dofadr[j]), a, C.SERVO_SIGN[joint],
                              stall, float(m.dof_damping[m.jnt_dofadr[j]])))
             self._servo[scu] = tuple(rows)
-        self._powered = [True] * m.nu
 
-        # feet: body, sole site, pad geoms and touch sensor addresses (table 12 order)
+    def _find_feet(self, need: Callable[[mujoco.mjtObj, str], int]) -> None:
+        """The trunk, the platform (a mocap body), and the feet: body, sole site, pad geoms and
+        touch sensor addresses (table 12 order)."""
+        m, path = self.model, self.model_path
         self._trunk = need(mujoco.mjtObj.mjOBJ_BODY, "trunk")
         self._platform_mocap = int(m.body_mocapid[need(mujoco.mjtObj.mjOBJ_BODY, "platform")])
         if self._platform_mocap < 0:
@@ -210,6 +279,10 @@ class Plant(BoardIO):
                 s = need(mujoco.mjtObj.mjOBJ_SENSOR, f"{foot}_{suffix}_touch")
                 adrs.append(int(m.sensor_adr[s]))
             self._touch_adr[foot] = tuple(adrs)  # type: ignore[assignment]
+
+    def _truth_probe(self) -> TruthProbe:
+        """The ground truth's probe on the model: the soles, the pads, the hinge joints."""
+        m = self.model
         self._sole_sites = [self._sole_site[foot] for foot in FOOT_BODIES]
         self._foot_touch_of_scu = {scu: self._touch_adr[foot] for scu, foot in hardware.FOOT_OF_SCU.items()}
         hinges = [j for j in range(m.njnt) if m.jnt_type[j] == mujoco.mjtJoint.mjJNT_HINGE]
@@ -219,25 +292,13 @@ class Plant(BoardIO):
         pad_list: list[int] = [-1] * m.ngeom
         for g, (f, k) in self._pad_of_geom.items():
             pad_list[g] = 4 * f + k
-        self._truth = TruthProbe(m, self.data, trunk=self._trunk, sole_sites=self._sole_sites,
-                                 pad_list=pad_list, joint_names=self._joint_names,
-                                 joint_qadr=self._joint_qadr)
-        self._drawing = Drawing(m, self.data, self._pad_of_geom)
-        # the boards' ADC front end (compiled): reads these MjData arrays in C
-        d = self.data
-        self._sense = SensorFrontEnd(d.qpos, d.qvel, d.actuator_force, d.sensordata)
-        self._qpos = d.qpos         # MjData's own arrays (fixed for its life): the truth's cache key
-        self._qvel = d.qvel
+        return TruthProbe(m, self.data, trunk=self._trunk, sole_sites=self._sole_sites,
+                          pad_list=pad_list, joint_names=self._joint_names, joint_qadr=self._joint_qadr)
 
-        # the hardware: potentiometer offsets, drawn once per plant (what calibration estimates)
-        ss = np.random.SeedSequence(self.seed)
-        s_hw, self._s_pot, self._s_force = ss.spawn(3)
-        offsets = np.random.default_rng(s_hw).uniform(-C.POT_OFFSET_RANGE_DEG, C.POT_OFFSET_RANGE_DEG,
-                                                      size=(N_SCU, hardware.N_SERVOS))
-        self.pot_b_true_deg: dict[int, tuple[float, float, float]] = {
-            scu: tuple(hardware.POT_B_NOMINAL_DEG + float(o) for o in offsets[scu - 1])  # type: ignore[misc]
-            for scu in hardware.SERVO_JOINTS
-        }
+    def _set_sensor_params(self, by_kind: dict[str, dict[str, float]],
+                           need: Callable[[mujoco.mjtObj, str], int]) -> None:
+        """The named parameters of the sensors: potentiometer offsets (added to the draw), the
+        force sensors' gains and zeros."""
         pot_offsets = by_kind.get("pot.offset_deg", {})     # pot.JOINT.offset_deg: added to the draw
         if pot_offsets:
             for scu, joints in hardware.SERVO_JOINTS.items():
@@ -247,21 +308,8 @@ class Plant(BoardIO):
         gains, zeros = by_kind.get("fsr.gain", {}), by_kind.get("fsr.offset_counts", {})
         for site in {*gains, *zeros}:                      # fsr.SITE.gain / offset_counts
             s = need(mujoco.mjtObj.mjOBJ_SENSOR, f"{site}_touch")
-            self._sense.set_force_calibration(int(m.sensor_adr[s]), gains.get(site, 1.0),
+            self._sense.set_force_calibration(int(self.model.sensor_adr[s]), gains.get(site, 1.0),
                                               zeros.get(site, 0.0))
-        self._tilt_deg = 0.0
-        self._tilt_profile: Callable[[float], float] | None = None
-        # injected faults (humanoid_twin/faults.py, docs/supervisor.md): extra force noise,
-        # frozen force sensors, jammed servos
-        self._force_fault = False
-        self._force_noise_counts = 0
-        self._force_fault_rng = np.random.default_rng(ss.spawn(1)[0])
-        # the body board's inclinometer and gyroscope, with their biases (imu.*_bias_*)
-        bias = tuple(by_kind.get(f"imu.{b}", {}).get("", 0.0) for b in _IMU_BIASES)
-        self._imu = TrunkImu(m, ss.spawn(1)[0], self._sense, bias=bias if any(bias) else None)
-        self._force_stuck: dict[int, list[int] | None] = {}
-        self._stuck_actuators: set[int] = set()
-        self.reset()
 
     # --- state --------------------------------------------------------------------------------
     def reset(self, keyframe: str = "stand") -> None:
@@ -372,18 +420,7 @@ class Plant(BoardIO):
         rows = self._servo.get(scu) if type(scu) is int else None
         if rows is None:
             _check_scu(scu)
-        try:
-            n = len(pulses_us)
-        except TypeError:
-            n = -1
-        if n != hardware.N_SERVOS:
-            raise PlantInputError(f"SCU {scu}: need a sequence of 3 pulses, got {pulses_us!r}")
-        lo = _PULSE_MIN_US
-        hi = _PULSE_MAX_US
-        for p in pulses_us:
-            if p is not None and (isinstance(p, bool) or not isinstance(p, numbers.Real)
-                                  or not lo <= p <= hi):
-                raise PlantInputError(f"SCU {scu}: pulse width must be {lo}..{hi} us or None, got {p!r}")
+        _check_pulses(scu, pulses_us)
         ctrl = self.data.ctrl
         powered = self._powered
         stuck = self._stuck_actuators

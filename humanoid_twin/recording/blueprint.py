@@ -123,10 +123,19 @@ def default_blueprint(
     ``master_entities``: the ``master/...`` counter entities, one plot each; ``params``: a
     Parameters tab (a run with non-default parameters, :func:`log_params`); ``active_tab``: the
     name of the tab shown first (default the first, the right leg's joints)."""
-    legs = [s for s in LEG_SCUS if s in scus]
-    upper = [s for s in scus if s not in LEG_SCUS]
     feet = [s for s in scus if s in FOOT_OF_SCU]
+    tabs = _tabs(scus, feet, master_entities, params)
+    return rrb.Blueprint(
+        rrb.Horizontal(_robot_views(feet), rrb.Tabs(*tabs, active_tab=_tab_index(tabs, active_tab)),
+                       column_shares=[2, 3]),
+        rrb.TimePanel(timeline="sim_time", state="collapsed"),
+        rrb.BlueprintPanel(state="collapsed"),
+        rrb.SelectionPanel(state="collapsed"),
+    )
 
+
+def _robot_views(feet: Sequence[int]) -> rrb.Container | rrb.View:
+    """The left of the window: the robot in 3-D, each foot's CoP under it."""
     robot_3d = rrb.Spatial3DView(
         name="Robot", origin=WORLD,
         eye_controls=rrb.EyeControls3D(position=EYE_POSITION, look_target=EYE_TARGET, eye_up=(0.0, 0.0, 1.0)),
@@ -135,9 +144,12 @@ def default_blueprint(
         rrb.Spatial2DView(name=f"{foot_side(s).capitalize()} foot CoP (mm)", origin=f"{FEET}/{foot_side(s)}")
         for s in feet
     ]
-    left = rrb.Vertical(robot_3d, rrb.Horizontal(*foot_views), row_shares=[3, 2]) if foot_views else robot_3d
+    return rrb.Vertical(robot_3d, rrb.Horizontal(*foot_views), row_shares=[3, 2]) if foot_views else robot_3d
 
-    currents = rrb.Grid(
+
+def _currents_tab(scus: Sequence[int]) -> rrb.Grid:
+    """Each board's servo currents."""
+    return rrb.Grid(
         *[
             _plot(
                 name=f"{scu_path(s).split('/')[1]} current (0..100)",
@@ -149,7 +161,11 @@ def default_blueprint(
         grid_columns=2,
         name="Currents",
     )
-    forces = rrb.Grid(
+
+
+def _forces_tab(feet: Sequence[int]) -> rrb.Grid:
+    """Each foot's force sensors, as the firmware reads them and as the plant applies them."""
+    return rrb.Grid(
         *[
             _plot(
                 name=f"{foot_side(s)} foot sensors, firmware 8-bit", origin=f"{scu_path(s)}/force/adc"
@@ -165,8 +181,12 @@ def default_blueprint(
         grid_columns=2,
         name="Force sensors",
     )
+
+
+def _cop_tab(feet: Sequence[int]) -> rrb.Grid:
+    """Each foot's CoP, firmware against truth."""
     # the CoP plots get a tab of their own: taller plots, readable ticks on a few mm of motion
-    cop = rrb.Grid(
+    return rrb.Grid(
         *[
             _plot(
                 name=f"{foot_side(s)} CoP {axis} (mm, {'right' if axis == 'x' else 'forward'} +): "
@@ -179,7 +199,11 @@ def default_blueprint(
         grid_columns=2,
         name="CoP",
     )
-    balance = rrb.Grid(
+
+
+def _balance_tab() -> rrb.Grid:
+    """The robot's balance: CoP margin, trunk tilt, CoM height, the fall, the platform."""
+    return rrb.Grid(
         _plot(name="CoP margin (mm)", origin=f"{ROBOT}/cop_margin_mm", legend=False),
         _plot(name="trunk tilt (deg)", origin=f"{ROBOT}/trunk_tilt_deg", legend=False),
         _plot(name="CoM height (mm)", origin=f"{ROBOT}/com_height_mm", legend=False),
@@ -189,7 +213,11 @@ def default_blueprint(
         grid_columns=2,
         name="Balance",
     )
-    counters = rrb.Grid(
+
+
+def _counters_tab(master_entities: Sequence[str]) -> rrb.Grid:
+    """The CAN wire's and the serial cable's counters, the Master's."""
+    return rrb.Grid(
         _plot(name="CAN frames/s", origin=f"{CAN}/frames_per_s", legend=False),
         _plot(name="CAN bus load (%)", origin=f"{CAN}/load_percent", legend=False),
         _plot(
@@ -204,7 +232,11 @@ def default_blueprint(
         grid_columns=2,
         name="Counters",
     )
-    boards = rrb.Grid(
+
+
+def _boards_tab(scus: Sequence[int]) -> rrb.Grid:
+    """Each board's status and task time; the body board's IMU against truth."""
+    return rrb.Grid(
         *[
             _plot(
                 name=f"{scu_path(s).split('/')[1]}: PWM, calibrated, deadline violations",
@@ -226,14 +258,26 @@ def default_blueprint(
         grid_columns=2,
         name="Boards",
     )
+
+
+def _supervisor_tab() -> rrb.Horizontal:
+    """The supervisor's mode beside its events."""
     # the events beside the plot: a log's lines are short, a full-width table left most of it empty
-    supervisor = rrb.Horizontal(
+    return rrb.Horizontal(
         _plot("Supervisor mode and faults latched", f"{SUPERVISOR}/mode", y_range=_MODE_RANGE),
         rrb.TextLogView(name="Events: modes, faults, injections, the fall", origin=f"{SUPERVISOR}/events",
                         columns=_LOG_COLUMNS),
         column_shares=[1, 1],       # [3, 2] cut the longer lines (a fall's) at the window's edge
         name="Supervisor",
     )
+
+
+def _tabs(scus: Sequence[int], feet: Sequence[int], master_entities: Sequence[str], params: bool
+          ) -> list[rrb.Container]:
+    """The tabs, in order: the legs' joints, the currents, the feet's (forces, CoP, balance), the
+    counters, the supervisor, the boards, the upper body's joints, the parameters."""
+    legs = [s for s in LEG_SCUS if s in scus]
+    upper = [s for s in scus if s not in LEG_SCUS]
     tabs: list[rrb.Container] = []
     # one tab per leg (its hip board and its leg board: 6 joints, 3 rows), so each plot is tall
     # enough for its legend to name all five series beside the curves
@@ -241,20 +285,15 @@ def default_blueprint(
         mine = [s for s in pair if s in legs]
         if mine:
             tabs.append(_joint_grid(mine, side))
-    tabs += [currents]
+    tabs += [_currents_tab(scus)]
     if feet:
-        tabs += [forces, cop, balance]
-    tabs += [counters, supervisor, boards]
+        tabs += [_forces_tab(feet), _cop_tab(feet), _balance_tab()]
+    tabs += [_counters_tab(master_entities), _supervisor_tab(), _boards_tab(scus)]
     if upper:
         tabs.append(_joint_grid(upper, "Upper body"))
     if params:
         tabs.append(rrb.TextDocumentView(origin=PARAMS, name="Parameters"))
-    return rrb.Blueprint(
-        rrb.Horizontal(left, rrb.Tabs(*tabs, active_tab=_tab_index(tabs, active_tab)), column_shares=[2, 3]),
-        rrb.TimePanel(timeline="sim_time", state="collapsed"),
-        rrb.BlueprintPanel(state="collapsed"),
-        rrb.SelectionPanel(state="collapsed"),
-    )
+    return tabs
 
 
 def _tab_index(tabs: Sequence[rrb.Container], name: str | None) -> int | None:

@@ -110,26 +110,44 @@ def _rotate_xyzw(q: Sequence[float], v: Sequence[float]) -> np.ndarray:
 
 
 def _shapes(kind: str, gs: list) -> Any:
-    """One rerun archetype for the geoms of one kind of one body (poses in the body frame)."""
+    """One rerun archetype for the geoms of one kind of one body (poses in the body frame); None
+    for a kind not drawn."""
+    build = _ARCHETYPES.get(kind)
+    if build is None:
+        return None
     pos = np.array([g.pos for g in gs], dtype=float)
     quats = [list(g.quat_xyzw) for g in gs]
     sizes = [np.asarray(g.size, dtype=float) for g in gs]
     colors = [_rgba(g) for g in gs]
-    common: dict[str, Any] = {"quaternions": quats, "colors": colors}
-    if kind == "box":
-        return rr.Boxes3D(half_sizes=[s[:3] for s in sizes], centers=pos, fill_mode="solid", **common)
-    if kind == "sphere":
-        radii = [[s[0]] * 3 for s in sizes]
-        return rr.Ellipsoids3D(half_sizes=radii, centers=pos, fill_mode="solid", **common)
-    if kind == "ellipsoid":
-        return rr.Ellipsoids3D(half_sizes=[s[:3] for s in sizes], centers=pos, fill_mode="solid", **common)
-    if kind == "capsule":
-        # MuJoCo: centred on pos along local z, radius size[0], half-length size[1];
-        # rerun: starts at the translation and runs ``length`` along local +z.
-        starts = [p - _rotate_xyzw(q, (0.0, 0.0, s[1])) for p, q, s in zip(pos, quats, sizes, strict=True)]
-        return rr.Capsules3D(lengths=[2 * s[1] for s in sizes], radii=[s[0] for s in sizes],
-                             translations=starts, **common)
-    if kind == "cylinder":
-        return rr.Cylinders3D(lengths=[2 * s[1] for s in sizes], radii=[s[0] for s in sizes], centers=pos,
-                              fill_mode="solid", **common)
-    return None
+    return build(pos, quats, sizes, {"quaternions": quats, "colors": colors})
+
+
+def _boxes(pos: np.ndarray, quats: list, sizes: list, common: dict[str, Any]) -> Any:
+    return rr.Boxes3D(half_sizes=[s[:3] for s in sizes], centers=pos, fill_mode="solid", **common)
+
+
+def _spheres(pos: np.ndarray, quats: list, sizes: list, common: dict[str, Any]) -> Any:
+    radii = [[s[0]] * 3 for s in sizes]
+    return rr.Ellipsoids3D(half_sizes=radii, centers=pos, fill_mode="solid", **common)
+
+
+def _ellipsoids(pos: np.ndarray, quats: list, sizes: list, common: dict[str, Any]) -> Any:
+    return rr.Ellipsoids3D(half_sizes=[s[:3] for s in sizes], centers=pos, fill_mode="solid", **common)
+
+
+def _capsules(pos: np.ndarray, quats: list, sizes: list, common: dict[str, Any]) -> Any:
+    # MuJoCo: centred on pos along local z, radius size[0], half-length size[1];
+    # rerun: starts at the translation and runs ``length`` along local +z.
+    starts = [p - _rotate_xyzw(q, (0.0, 0.0, s[1])) for p, q, s in zip(pos, quats, sizes, strict=True)]
+    return rr.Capsules3D(lengths=[2 * s[1] for s in sizes], radii=[s[0] for s in sizes],
+                         translations=starts, **common)
+
+
+def _cylinders(pos: np.ndarray, quats: list, sizes: list, common: dict[str, Any]) -> Any:
+    return rr.Cylinders3D(lengths=[2 * s[1] for s in sizes], radii=[s[0] for s in sizes], centers=pos,
+                          fill_mode="solid", **common)
+
+
+# each MuJoCo geom kind drawn, and the rerun archetype that draws the geoms of one body
+_ARCHETYPES = {"box": _boxes, "sphere": _spheres, "ellipsoid": _ellipsoids, "capsule": _capsules,
+               "cylinder": _cylinders}

@@ -125,6 +125,58 @@ def _check_path(path: str | pathlib.Path) -> pathlib.Path:
     return p
 
 
+def _chunk_s(period_us: int, chunk_s: float | None) -> float:
+    """``chunk_s`` checked (default: :data:`DEFAULT_CHUNK_S`, or fewer seconds at a short
+    ``period_us``, itself checked)."""
+    if isinstance(period_us, bool) or not isinstance(period_us, int) or period_us <= 0:
+        raise ValueError(f"period_us must be a positive int of microseconds, got {period_us!r}")
+    if chunk_s is None:     # the default: DEFAULT_CHUNK_S, or fewer seconds at a short period
+        chunk_s = min(DEFAULT_CHUNK_S, _MAX_CHUNK_ROWS * period_us / US_PER_S)
+    if isinstance(chunk_s, bool) or not isinstance(chunk_s, (int, float)) or not (
+        math.isfinite(chunk_s) and chunk_s > 0
+    ):
+        raise ValueError(f"chunk_s must be a positive number of simulated seconds, got {chunk_s!r}")
+    return chunk_s
+
+
+def _chunk_rows(period_us: int, chunk_s: float) -> int:
+    """The rows a chunk of ``chunk_s`` buffers, one per ``period_us``: at most :data:`_MAX_CHUNK_ROWS`."""
+    rows = max(1, round(chunk_s * US_PER_S / period_us))
+    if rows > _MAX_CHUNK_ROWS:
+        raise ValueError(
+            f"chunk_s={chunk_s} s at period_us={period_us} buffers {rows} rows; at most "
+            f"{_MAX_CHUNK_ROWS} (memory): use a smaller chunk_s"
+        )
+    return rows
+
+
+def _checked_scus(twin: Any, scus: Iterable[int]) -> tuple[int, ...]:
+    """``twin`` is a Twin and ``scus`` some of its boards, each once."""
+    for attr in ("clock", "plant", "network", "link", "master", "slaves", "every"):
+        if not hasattr(twin, attr):
+            raise RecorderError(f"Recorder needs a Twin (with .{attr}), got {type(twin).__name__}")
+    boards = tuple(scus)
+    if not boards:
+        raise ValueError("scus: record at least one board")
+    for s in boards:
+        if s not in twin.slaves:
+            raise ValueError(f"SCU {s!r} is not a board of this twin (it has {sorted(twin.slaves)})")
+    if len(set(boards)) != len(boards):
+        raise ValueError(f"scus has duplicates: {boards}")
+    return boards
+
+
+def _check_columns(columns: Sequence[Column]) -> None:
+    """Each column records its own path; a sparse column has one series."""
+    seen: set[str] = set()
+    for c in columns:
+        if c.path in seen:
+            raise ValueError(f"two columns record {c.path!r}")
+        if c.sparse and c.width != 1:
+            raise ValueError(f"column {c.path!r}: sparse columns have one series")
+        seen.add(c.path)
+
+
 class Recorder:
     """Buffered rerun recording of a :class:`~humanoid_twin.twin.Twin` (docs/recording.md).
 
@@ -159,33 +211,11 @@ class Recorder:
         stream_to: str | None = None,
     ) -> None:
         t_start = time.perf_counter()
-        if isinstance(period_us, bool) or not isinstance(period_us, int) or period_us <= 0:
-            raise ValueError(f"period_us must be a positive int of microseconds, got {period_us!r}")
-        if chunk_s is None:     # the default: DEFAULT_CHUNK_S, or fewer seconds at a short period
-            chunk_s = min(DEFAULT_CHUNK_S, _MAX_CHUNK_ROWS * period_us / US_PER_S)
-        if isinstance(chunk_s, bool) or not isinstance(chunk_s, (int, float)) or not (
-            math.isfinite(chunk_s) and chunk_s > 0
-        ):
-            raise ValueError(f"chunk_s must be a positive number of simulated seconds, got {chunk_s!r}")
+        chunk_s = _chunk_s(period_us, chunk_s)
         if not isinstance(app_id, str) or not app_id:
             raise ValueError(f"app_id must be a non-empty string, got {app_id!r}")
-        for attr in ("clock", "plant", "network", "link", "master", "slaves", "every"):
-            if not hasattr(twin, attr):
-                raise RecorderError(f"Recorder needs a Twin (with .{attr}), got {type(twin).__name__}")
-        self.scus: tuple[int, ...] = tuple(scus)
-        if not self.scus:
-            raise ValueError("scus: record at least one board")
-        for s in self.scus:
-            if s not in twin.slaves:
-                raise ValueError(f"SCU {s!r} is not a board of this twin (it has {sorted(twin.slaves)})")
-        if len(set(self.scus)) != len(self.scus):
-            raise ValueError(f"scus has duplicates: {self.scus}")
-        rows = max(1, round(chunk_s * US_PER_S / period_us))
-        if rows > _MAX_CHUNK_ROWS:
-            raise ValueError(
-                f"chunk_s={chunk_s} s at period_us={period_us} buffers {rows} rows; at most "
-                f"{_MAX_CHUNK_ROWS} (memory): use a smaller chunk_s"
-            )
+        self.scus: tuple[int, ...] = _checked_scus(twin, scus)
+        rows = _chunk_rows(period_us, chunk_s)
         self.twin = twin
         self._rows = rows
         self.period_us = period_us
@@ -204,24 +234,7 @@ class Recorder:
 
         self._layout((*_supervisor_columns(twin), *columns))
         self._alloc()
-        if path is None and stream_to is None:
-            raise ValueError("a recorder writes a file, streams to a viewer (stream_to), or both")
-        self.stream_to = stream_to
-        self.compact = compact and path is not None
-        self.path = None if path is None else _check_path(path)   # the last check, the first thing created
-        self.rec = rr.RecordingStream(app_id, recording_id=uuid.uuid4())
-        self.params: dict[str, float] = dict(getattr(twin, "params", None) or {})   # non-default parameters
-        bp = default_blueprint(self.scus, self._master_paths, params=bool(self.params)) if blueprint else None
-        try:
-            # compact: no footer while recording (rerun's file sink keeps the footer's index of
-            # every chunk in memory until the end: RSS grew ~0.13 MB per simulated second with
-            # it); the compaction at close writes the file again, compacted, with its footer.
-            sinks: list[Any] = [] if self.path is None else [rr.FileSink(self.path, write_footer=not compact)]
-            if stream_to is not None:
-                sinks.append(rr.GrpcSink(stream_to))
-            self.rec.set_sinks(*sinks, default_blueprint=bp)
-        except RuntimeError as exc:
-            raise OSError(f"cannot write the recording {str(self.path or stream_to)!r}: {exc}") from exc
+        self._open(path, stream_to, compact, blueprint)
         atexit.register(self.close)
         try:
             self._log_static()
@@ -233,6 +246,29 @@ class Recorder:
             sup.listeners.append(self._on_supervisor)
         twin.every(period_us, self.sample, twin.clock.now_us)
         self.wall_s += time.perf_counter() - t_start
+
+    def _open(self, path: str | pathlib.Path | None, stream_to: str | None, compact: bool,
+              blueprint: bool) -> None:
+        """The recording stream and its sinks: the file ``path`` (checked: the last check, the
+        first thing created), a viewer at ``stream_to``; the default blueprint."""
+        if path is None and stream_to is None:
+            raise ValueError("a recorder writes a file, streams to a viewer (stream_to), or both")
+        self.stream_to = stream_to
+        self.compact = compact and path is not None
+        self.path = None if path is None else _check_path(path)   # the last check, the first thing created
+        self.rec = rr.RecordingStream(self.app_id, recording_id=uuid.uuid4())
+        self.params: dict[str, float] = dict(getattr(self.twin, "params", None) or {})   # non-default ones
+        bp = default_blueprint(self.scus, self._master_paths, params=bool(self.params)) if blueprint else None
+        try:
+            # compact: no footer while recording (rerun's file sink keeps the footer's index of
+            # every chunk in memory until the end: RSS grew ~0.13 MB per simulated second with
+            # it); the compaction at close writes the file again, compacted, with its footer.
+            sinks: list[Any] = [] if self.path is None else [rr.FileSink(self.path, write_footer=not compact)]
+            if stream_to is not None:
+                sinks.append(rr.GrpcSink(stream_to))
+            self.rec.set_sinks(*sinks, default_blueprint=bp)
+        except RuntimeError as exc:
+            raise OSError(f"cannot write the recording {str(self.path or stream_to)!r}: {exc}") from exc
 
     # -- layout --------------------------------------------------------------------------------------
     def _layout(self, extra: Sequence[Column]) -> None:
@@ -246,13 +282,7 @@ class Recorder:
         self._feet = [s for s in self.scus if s in FOOT_OF_SCU]
         self._master_paths = [p for p, _ in master_groups(twin)]
         self.columns: tuple[Column, ...] = (*twin_columns(twin, self.scus), *extra)
-        seen: set[str] = set()
-        for c in self.columns:
-            if c.path in seen:
-                raise ValueError(f"two columns record {c.path!r}")
-            if c.sparse and c.width != 1:
-                raise ValueError(f"column {c.path!r}: sparse columns have one series")
-            seen.add(c.path)
+        _check_columns(self.columns)
         # the recorded values: one block of ``width`` columns per Column, grouped by ``every`` (in
         # table order within a group); ``_col``: each Column's first
         self._buffer_order = sorted(self.columns, key=lambda c: c.every)
@@ -269,6 +299,25 @@ class Recorder:
         # reader; a group's integers (``ColumnGroup.ints``) are stored as int64 (``_int_cols``)
         self._readers: list[tuple[Any, ColumnGroup | None, int, int, int, int]] = []
         self._batch: list[tuple[ColumnGroup, int, int]] = []     # (group, buffer column, values column)
+        self._plan_buffer()
+        self._batch_state: dict[ColumnGroup, Any] = {}
+        # the readers of a row, by the set of Column.every values that divide its sample number
+        # (a column written every k-th sample is only read then): built once per set, found by
+        # the sample number modulo the everys' least common multiple
+        self._row_readers: dict[int, list[tuple[list, struct.Struct, int, int]]] = {}
+        self._runs_by_due: dict[frozenset[int], list[tuple[list, struct.Struct, int, int]]] = {}
+        self._everys = sorted({c.every for c in self.columns})
+        self._cycle = math.lcm(*self._everys)
+        try:
+            self._signs = servo_signs(twin, self.scus)
+        except ValueError as exc:
+            raise RecorderError(str(exc)) from None
+        self._pose_sources(plant)
+        self._tick: Tick | None = None
+
+    def _plan_buffer(self) -> None:
+        """Each reader's place in the buffer (``_readers``, ``_batch``), the plain values' source
+        and destination columns, the integer columns; the buffer's width."""
         src: list[int] = []
         dst: list[int] = []
         ints: list[int] = []
@@ -297,28 +346,17 @@ class Recorder:
         self._int_cols = np.array(ints, dtype=np.intp)
         self._plain_src = np.array(src, dtype=np.intp)
         self._plain_dst = np.array(dst, dtype=np.intp)
-        self._batch_state: dict[ColumnGroup, Any] = {}
-        # the readers of a row, by the set of Column.every values that divide its sample number
-        # (a column written every k-th sample is only read then): built once per set, found by
-        # the sample number modulo the everys' least common multiple
-        self._row_readers: dict[int, list[tuple[list, struct.Struct, int, int]]] = {}
-        self._runs_by_due: dict[frozenset[int], list[tuple[list, struct.Struct, int, int]]] = {}
-        self._everys = sorted({c.every for c in self.columns})
-        self._cycle = math.lcm(*self._everys)
-        try:
-            self._signs = servo_signs(twin, self.scus)
-        except ValueError as exc:
-            raise RecorderError(str(exc)) from None
+
+    def _pose_sources(self, plant: Any) -> None:
+        """The bodies' names and their poses' views, copied into the buffer at each sample, after
+        truth() has synced the plant (as flat memoryviews: a row's copy is a slice assignment)."""
         names, _, _ = plant.body_poses()
         self._body_names: tuple[str, ...] = tuple(names)
-        # copied into the buffer at each sample, after truth() has synced the plant (as flat
-        # memoryviews: a row's copy is a slice assignment)
         self._poses = plant.body_pose_views()
         if not all(v.dtype == np.float64 and v.flags.c_contiguous for v in self._poses):
             raise RecorderError("the plant's body pose views are not contiguous float64: cannot record them")
         self._pose_src = tuple(memoryview(v).cast("B").cast("d") for v in self._poses)
         self._platform = self._body_names.index("platform") if "platform" in self._body_names else None
-        self._tick: Tick | None = None
 
     def _runs_due(self, k: int) -> list[tuple[list, struct.Struct, int, int]]:
         """The runs of sample number ``k`` (:meth:`_readers_for`), kept by ``k`` modulo the

@@ -130,25 +130,38 @@ class RunCli:
 
     def summary(self, returncode: int, stdout: str, stderr: str) -> dict[str, Any]:
         """The ``run --json`` summary of a finished run; RuntimeError (its row's error) otherwise."""
-        lines = [ln for ln in stdout.splitlines() if ln.strip()]
         # exit 0: done; exit 3: the supervisor ended the run in a safe state, a result like any other
-        if returncode in (0, 3) and lines:
-            try:
-                summary = json.loads(lines[-1])
-            except json.JSONDecodeError:
-                pass
-            else:
-                if self.label is not None and isinstance(summary, dict) and "scenario" in summary:
-                    summary["scenario"] = self.label
-                return summary
-        # the whole of stderr (a traceback's every line), one line per cell: lines joined by " | "
+        summary = _last_json(stdout) if returncode in (0, 3) else _NO_JSON
+        if summary is not _NO_JSON:
+            if self.label is not None and isinstance(summary, dict) and "scenario" in summary:
+                summary["scenario"] = self.label
+            return summary
+        raise RuntimeError(self._failure(returncode, stderr))
+
+    def _failure(self, returncode: int, stderr: str) -> str:
+        """The error cell of a run that gave no summary: the whole of its stderr (a traceback's
+        every line), one line per cell: lines joined by " | "."""
         err = [ln.strip() for ln in stderr.splitlines() if ln.strip()]
         if returncode == 1 and err and "(--wall-timeout)" in err[-1]:
-            raise RuntimeError(self._timeout_message())
+            return self._timeout_message()
         if returncode in (0, 3):    # a run prints its summary last: its process ended before (os._exit)
             why = "ended without its summary (its process ended early: os._exit in user code?)"
-            raise RuntimeError(f"exit {returncode}: {why}" + (f": {' | '.join(err)}" if err else ""))
-        raise RuntimeError(f"exit {returncode}: {' | '.join(err) if err else 'no message'}")
+            return f"exit {returncode}: {why}" + (f": {' | '.join(err)}" if err else "")
+        return f"exit {returncode}: {' | '.join(err) if err else 'no message'}"
+
+
+_NO_JSON = object()
+
+
+def _last_json(stdout: str) -> Any:
+    """The JSON value of the last non-blank line of ``stdout`` (:data:`_NO_JSON`: none, or not JSON)."""
+    lines = [ln for ln in stdout.splitlines() if ln.strip()]
+    if not lines:
+        return _NO_JSON
+    try:
+        return json.loads(lines[-1])
+    except json.JSONDecodeError:
+        return _NO_JSON
 
 
 def _die_with_parent() -> None:
@@ -402,7 +415,30 @@ def run_sweep(points: Sequence[Point], task: Task, out: Path, *, jobs: int | Non
     table_format(out)
     check_backend(backend)
     names = [n for n, _ in points[0].params] if points else []
-    old = read_table(out) if out.exists() else []
+    kept, todo = _plan_runs(points, names, read_table(out) if out.exists() else [])
+    jobs = jobs or os.cpu_count() or 1
+    bar = Progress(len(todo), progress)
+    if progress is not None and len(todo) < len(points):
+        progress.write(f"sweep: {len(points) - len(todo)} of {len(points)} runs already in {out}, "
+                       f"{len(todo)} to run\n")
+    table = _Table(out, kept, known)
+    try:
+        if todo:
+            index = {p.key(): p.index for p in todo}
+            for row in _start(task, todo, jobs, backend, address):
+                table.add(index[row_key(row, names)], row)
+                bar.update(row)
+        elif not out.exists():
+            table.write()
+    finally:
+        bar.close()
+    return table.rows_of(points, names)
+
+
+def _plan_runs(points: Sequence[Point], names: list[str], old: list[dict[str, Any]]
+               ) -> tuple[list[dict[str, Any]], list[Point]]:
+    """The rows of the table ``old`` that this sweep keeps (in the table's order: the finished
+    runs, and the rows of other grids) and the points it runs (not in it, or with an error)."""
     old_by_key = {}
     for row in old:
         k = row_key(row, names)
@@ -412,44 +448,48 @@ def run_sweep(points: Sequence[Point], task: Task, out: Path, *, jobs: int | Non
     # rows of the table that this sweep does not run again, in the table's order
     kept = [r for r in old if row_key(r, names) not in wanted or row_key(r, names) in old_by_key]
     todo = [p for p in points if p.key() not in old_by_key]
-    jobs = jobs or os.cpu_count() or 1
-    bar = Progress(len(todo), progress)
-    if progress is not None and len(todo) < len(points):
-        progress.write(f"sweep: {len(points) - len(todo)} of {len(points)} runs already in {out}, "
-                       f"{len(todo)} to run\n")
-    new: dict[int, dict[str, Any]] = {}
+    return kept, todo
 
-    parquet = table_format(out) == "parquet"
-    kinds = {c: k for c, k in (known or {}).items() if k is not None}
 
-    def flush() -> None:
+def _start(task: Task, todo: list[Point], jobs: int, backend: str, address: str | None
+           ) -> Iterable[dict[str, Any]]:
+    """The rows of the runs of ``todo`` as they finish, on ``backend``."""
+    if backend != "local":
+        return _ray(task, todo, jobs, address)
+    if isinstance(task, RunCli):
+        return _local_cli(task, todo, jobs)
+    return _local(task, todo, jobs)
+
+
+class _Table:
+    """The sweep's table ``out``, rewritten atomically after each finished run: the rows kept
+    from it, then the new ones in grid order (the same table whatever order the runs finish in).
+    ``known``: see :func:`run_sweep` (a Parquet table carries every column it names)."""
+
+    def __init__(self, out: Path, kept: list[dict[str, Any]], known: dict[str, str | None] | None) -> None:
+        self.out, self.kept, self.known = out, kept, known
+        self.new: dict[int, dict[str, Any]] = {}
+        self.parquet = table_format(out) == "parquet"
+        self.kinds = {c: k for c, k in (known or {}).items() if k is not None}
+
+    def add(self, index: int, row: dict[str, Any]) -> None:
+        """The row of grid point ``index``, written."""
+        self.new[index] = row
+        self.write()
+
+    def write(self) -> None:
         # columns from the rows in grid order: the same table whatever order the runs finish in
-        rows = kept + [new[i] for i in sorted(new)]
+        rows = self.kept + [self.new[i] for i in sorted(self.new)]
         columns = _columns(rows)
-        if parquet and known:
-            columns += [c for c in known if c not in columns]
-        write_table(out, rows, _ordered(columns), kinds if parquet else None)
+        if self.parquet and self.known:
+            columns += [c for c in self.known if c not in columns]
+        write_table(self.out, rows, _ordered(columns), self.kinds if self.parquet else None)
 
-    try:
-        if todo:
-            if backend != "local":
-                runs = _ray(task, todo, jobs, address)
-            elif isinstance(task, RunCli):
-                runs = _local_cli(task, todo, jobs)
-            else:
-                runs = _local(task, todo, jobs)
-            index = {p.key(): p.index for p in todo}
-            for row in runs:
-                new[index[row_key(row, names)]] = row
-                flush()
-                bar.update(row)
-        elif not out.exists():
-            flush()
-    finally:
-        bar.close()
-    by_key = {row_key(r, names): r for r in kept}
-    by_key.update({row_key(r, names): r for r in new.values()})
-    return [by_key[p.key()] for p in points]
+    def rows_of(self, points: Sequence[Point], names: list[str]) -> list[dict[str, Any]]:
+        """The rows of ``points``, in their order (kept or new)."""
+        by_key = {row_key(r, names): r for r in self.kept}
+        by_key.update({row_key(r, names): r for r in self.new.values()})
+        return [by_key[p.key()] for p in points]
 
 
 def _columns(rows: list[dict[str, Any]]) -> list[str]:

@@ -80,19 +80,25 @@ def parse_randomize(specs: Sequence[str]) -> list[Randomize]:
             raise SweepError(f"--randomize: {exc}") from None
         kind, a, b = m.group(1), float(m.group(2)), float(m.group(3))
         lo, hi = max(p.min for p in matches), min(p.max for p in matches)
-        if kind == "uniform":
-            if not a < b:
-                raise SweepError(f"--randomize {spec!r}: uniform(A,B) needs A < B")
-            if a < lo or b > hi:
-                raise SweepError(f"--randomize {spec!r}: outside the bounds of {name}, {lo:g}..{hi:g}")
-        else:
-            if not b > 0:
-                raise SweepError(f"--randomize {spec!r}: normal(MU,SIGMA) needs SIGMA > 0")
-            if not lo <= a <= hi:
-                raise SweepError(f"--randomize {spec!r}: the mean is outside the bounds of {name}, "
-                                 f"{lo:g}..{hi:g}")
+        _check_distribution(spec, name, kind, a, b, lo, hi)
         out.append(Randomize(name, kind, a, b, lo, hi))
     return out
+
+
+def _check_distribution(spec: str, name: str, kind: str, a: float, b: float, lo: float, hi: float) -> None:
+    """A uniform(A,B) forwards and within the bounds ``lo``..``hi``; a normal(MU,SIGMA) with SIGMA
+    > 0 and its mean within them (:class:`SweepError` naming ``spec``)."""
+    if kind == "uniform":
+        if not a < b:
+            raise SweepError(f"--randomize {spec!r}: uniform(A,B) needs A < B")
+        if a < lo or b > hi:
+            raise SweepError(f"--randomize {spec!r}: outside the bounds of {name}, {lo:g}..{hi:g}")
+        return
+    if not b > 0:
+        raise SweepError(f"--randomize {spec!r}: normal(MU,SIGMA) needs SIGMA > 0")
+    if not lo <= a <= hi:
+        raise SweepError(f"--randomize {spec!r}: the mean is outside the bounds of {name}, "
+                         f"{lo:g}..{hi:g}")
 
 
 def draw_samples(randomized: Sequence[Randomize], samples: int, seed: int = RANDOMIZE_SEED

@@ -21,6 +21,7 @@ import pytest
 from helpers import CLI, default_signals
 
 from humanoid_twin import recording
+from humanoid_twin.cli import checked_outputs as outputs
 from humanoid_twin.cli import main as cli
 from humanoid_twin.recording import read_rrd_rows, verify_rrd
 from humanoid_twin.twin import Twin
@@ -55,13 +56,14 @@ def test_sqlite_can_log_on_a_full_disk_fails_the_run_and_keeps_the_old_file(tmp_
 
 def test_free_space_check_scales_with_the_duration(tmp_path: Path, monkeypatch, capsys) -> None:
     # what a run writes grows with its length; a long recording is counted twice (compaction)
-    short = cli.output_bytes("out", Path("x.rrd"), 60.0)
-    long = cli.output_bytes("out", Path("x.rrd"), 600.0)
+    short = outputs.output_bytes("out", Path("x.rrd"), 60.0)
+    long = outputs.output_bytes("out", Path("x.rrd"), 600.0)
     assert long >= 2 * 10 * short * 0.99
-    assert cli.output_bytes("can_log", Path("x.txt"), 60) > cli.output_bytes("can_log", Path("x.blf"), 60)
+    assert (outputs.output_bytes("can_log", Path("x.txt"), 60)
+            > outputs.output_bytes("can_log", Path("x.blf"), 60))
     # 120 MB free: a 600 s recording (~130 MB, twice for the compaction) is refused at once
-    usage = cli.shutil.disk_usage(tmp_path)
-    monkeypatch.setattr(cli.shutil, "disk_usage",
+    usage = outputs.shutil.disk_usage(tmp_path)
+    monkeypatch.setattr(outputs.shutil, "disk_usage",
                         lambda p: usage._replace(free=120 * 2**20))
     out = tmp_path / "x.rrd"
     with pytest.raises(SystemExit) as exc:
@@ -71,7 +73,7 @@ def test_free_space_check_scales_with_the_duration(tmp_path: Path, monkeypatch, 
     assert len(err) == 1 and "only 120 MB free" in err[0]
     assert list(tmp_path.iterdir()) == []        # nothing written
     # the same disk takes a 60 s run
-    cli._Outputs().check_space({"out": (out, "--out")}, 60.0)
+    outputs.CheckedOutputs().check_space({"out": (out, "--out")}, 60.0)
 
 
 def test_a_failed_compaction_keeps_the_readable_recording(tmp_path: Path, monkeypatch) -> None:
