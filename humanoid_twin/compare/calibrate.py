@@ -222,11 +222,11 @@ def _jacobian(ev: _Evaluator, unknowns: Sequence[Unknown], x: np.ndarray, r: np.
 
 
 def _central_jacobian(ev: _Evaluator, unknowns: Sequence[Unknown], x: np.ndarray,
-                      r: np.ndarray) -> tuple[np.ndarray, float]:
+                      r: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The Jacobian at the optimum by central differences (one side at a bound), every probe in
-    parallel, and the variance of what a straight line through each column's three points does
-    not explain (the twin's jitter: a quantised reading or a contact that flips, mean square per
-    value; 0 where a side is missing)."""
+    parallel, and for each column the variance of what a straight line through its three points
+    does not explain (the twin's jitter under that parameter: a quantised reading or a contact
+    that flips, mean square per value; 0 where a side is missing)."""
     h = _steps(unknowns, x)
     pts: list[np.ndarray] = []
     sides: list[tuple[float, float]] = []
@@ -240,18 +240,18 @@ def _central_jacobian(ev: _Evaluator, unknowns: Sequence[Unknown], x: np.ndarray
             pts.append(p)
     cols = ev.many(pts)
     J = np.empty((r.size, len(unknowns)))
-    jitter: list[np.ndarray] = []
+    jitter = np.zeros(len(unknowns))
     for i, (up, down) in enumerate(sides):
         r_up, r_down = cols[2 * i], cols[2 * i + 1]
         J[:, i] = (r_up - r_down) / (up - down) if up > down else 0.0
         a, b = up - x[i], x[i] - down
-        if a > 0 and b > 0:
+        if a > 0 and b > 0 and r.size:
             # the straight line through the outer points misses the middle one by ``miss``: the
             # least-squares line's residuals through the three (one degree of freedom) sum to
             # 2/3 of its square (equal steps)
             miss = (b * r_up + a * r_down) / (a + b) - r
-            jitter.append(miss * miss * (2.0 / 3.0))
-    return J, float(np.mean(np.concatenate(jitter))) if jitter else 0.0
+            jitter[i] = float(np.mean(miss * miss)) * 2.0 / 3.0
+    return J, jitter
 
 
 def _windows(results: Sequence[CompareResult], groups: Sequence[str], window: int) -> float:
@@ -266,20 +266,21 @@ def _windows(results: Sequence[CompareResult], groups: Sequence[str], window: in
     return out
 
 
-def _intervals(sysid: Any, r: np.ndarray, J: np.ndarray, s2_jitter: float, n_eff: float) -> np.ndarray:
+def _intervals(sysid: Any, r: np.ndarray, J: np.ndarray, jitter: np.ndarray, n_eff: float) -> np.ndarray:
     """95 % half-widths: ``mujoco.sysid.calculate_intervals`` (the variance times the inverse of
-    JᵀJ, by its eigen-decomposition) with an honest variance: the larger of the residual's and
-    the jitter's, times n / ``n_eff`` (the residual's values are not independent: ``_windows``),
-    and Student's quantile on ``n_eff`` - p degrees of freedom."""
+    JᵀJ, by its eigen-decomposition) with an honest variance for each parameter: the larger of
+    the residual's and that parameter's jitter, times n / ``n_eff`` (the residual's values are
+    not independent: ``_windows``), and Student's quantile on ``n_eff`` - p degrees of freedom."""
     from scipy.special import stdtrit
 
     n, p = r.size, J.shape[1]
     if n <= p:
         return np.full(p, math.inf)
-    s2 = max(float(r @ r) / (n - p), s2_jitter) * n / max(n_eff, 1e-9)
-    _, half = sysid.calculate_intervals([np.full(n, math.sqrt(s2 * (n - p) / n))], J)
+    # the toolbox's half-widths for a unit variance (its residual's mean square: 1)
+    _, unit = sysid.calculate_intervals([np.full(n, math.sqrt((n - p) / n))], J)
+    s2 = np.maximum(float(r @ r) / (n - p), np.asarray(jitter, dtype=float)) * n / max(n_eff, 1e-9)
     dof = max(n_eff - p, 1.0)
-    return np.asarray(half, dtype=float) * float(stdtrit(dof, 0.975) / stdtrit(n - p, 0.975))
+    return np.asarray(unit, dtype=float) * np.sqrt(s2) * float(stdtrit(dof, 0.975) / stdtrit(n - p, 0.975))
 
 
 # -- the fit ------------------------------------------------------------------------------------
@@ -393,8 +394,8 @@ def fit(problem: FitProblem, *, validate: Sequence[RobotLog] = (), jobs: int = 1
             after = problem.run(x)
             r1 = np.concatenate([r.residual_vector(problem.groups, problem.window) for r in after])
             ev.evaluations += 1
-        J, s2_jitter = _central_jacobian(ev, unknowns, x, r1)
-        half = _intervals(sysid, r1, J, s2_jitter, _windows(after, problem.groups, problem.window))
+        J, jitter = _central_jacobian(ev, unknowns, x, r1)
+        half = _intervals(sysid, r1, J, jitter, _windows(after, problem.groups, problem.window))
     finally:
         ev.close()
     fitted: dict[str, dict[str, Any]] = {}
