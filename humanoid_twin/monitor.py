@@ -50,7 +50,7 @@ from humanoid_twin.hardware import FOOT_OF_SCU, PWM_PERIOD_US
 from humanoid_twin.plant.plant import GroundTruth
 from humanoid_twin.twin import Twin
 
-__all__ = ["Monitor", "Extremes", "SAMPLE_PERIOD_US", "CONTROLLERS_START_S"]
+__all__ = ["Monitor", "Extremes", "SoleSlide", "SAMPLE_PERIOD_US", "CONTROLLERS_START_S"]
 
 SAMPLE_PERIOD_US = PWM_PERIOD_US      # one sample of the truth per PWM period (20 ms)
 SOLE_ON_SURFACE_MM = 5.0              # a sole origin this close to the platform stands on it (slip_mm)
@@ -86,6 +86,38 @@ class Extremes:
             self.cop_margin_min_at_s = t_s
 
 
+class SoleSlide:
+    """How far a foot standing on the platform has slid since it was set down (in the
+    platform's frame, mm): from its first sample, or the first sample after it was lifted (more
+    than :data:`SOLE_ON_SURFACE_MM` above the surface: a step is not a slide). ``add`` takes one
+    sample of ``Plant.soles_on_surface_mm`` and returns the largest slide of that sample (0 for
+    none); ``slip_mm`` is the largest so far."""
+
+    def __init__(self) -> None:
+        self._ref: list[tuple[float, float] | None] | None = None
+        self.slip_mm = 0.0
+
+    def add(self, soles: Sequence[tuple[float, float, float]]) -> float:
+        ref = self._ref
+        if ref is None:
+            ref = self._ref = [None] * len(soles)
+        out = 0.0
+        for f, (x, y, h) in enumerate(soles):
+            if h >= SOLE_ON_SURFACE_MM:
+                ref[f] = None
+                continue
+            r = ref[f]
+            if r is None:
+                ref[f] = (x, y)
+                continue
+            d = math.hypot(x - r[0], y - r[1])
+            if d > out:
+                out = d
+        if out > self.slip_mm:
+            self.slip_mm = out
+        return out
+
+
 @dataclass
 class Monitor:
     """Samples the ground truth every 20 ms of virtual time: ``Monitor(twin, start_s=0.0)``.
@@ -113,7 +145,7 @@ class Monitor:
     fell_at_s: float | None = None
     slip_mm: float = 0.0
     last: GroundTruth | None = field(default=None, repr=False)
-    _soles0: list | None = field(default=None, repr=False)
+    _slide: SoleSlide = field(default_factory=lambda: SoleSlide(), repr=False)
     # the simulation diverged (Plant.divergence: MuJoCo's instability warning, a non-finite state):
     # why and when (first sample that saw it); the samples after it are not counted. ``on_diverged``
     # is called then (``scenarios.run`` ends the run); without it, the reason is one line on stderr
@@ -154,7 +186,7 @@ class Monitor:
             self.fell_at_s = twin.now_s
         now_s = twin.now_s
         self._extremes(gt, now_s)
-        self._slide(gt.soles_on_surface_mm, now_s)
+        self._slid(gt, now_s)
 
     def _diverges(self) -> bool:
         """Whether the simulation diverged at this sample (reported once: ``on_diverged``, or one
@@ -186,26 +218,13 @@ class Monitor:
         motion = self.motion
         if motion is not None and self.motion_from_s is not None and now_s >= self.motion_from_s:
             motion.add(now_s, tilt, margin)
-
-    def _slide(self, soles: Sequence[tuple[float, float, float]], now_s: float) -> None:
-        """How far a foot standing on the platform has slid since it was set down (in the
-        platform's frame): the first sample, or the first sample after it was lifted (more than
-        SOLE_ON_SURFACE_MM above the surface: a step is not a slide)."""
-        ref = self._soles0
-        if ref is None:
-            ref = self._soles0 = [None] * len(soles)
-        for f, (x, y, h) in enumerate(soles):
-            if h >= SOLE_ON_SURFACE_MM:
-                ref[f] = None
-                continue
-            r = ref[f]
-            if r is None:
-                ref[f] = (x, y)
-                continue
-            d = math.hypot(x - r[0], y - r[1])
-            if d > self.slip_mm:
-                self.slip_mm = d
-                self.slip_mm_at_s = now_s
+    def _slid(self, gt: GroundTruth, now_s: float) -> None:
+        """How far a foot standing on the platform has slid since it was set down
+        (:class:`SoleSlide`), the run's largest and when."""
+        d = self._slide.add(gt.soles_on_surface_mm)
+        if d > self.slip_mm:
+            self.slip_mm = d
+            self.slip_mm_at_s = now_s
 
     def compare_cop(self, scu: int, foot: str) -> None:
         """Firmware CoP of board ``scu`` (computed at its tick, just now) vs the contact CoP."""

@@ -48,6 +48,7 @@ class Twin:
         pic_mhz: float = DEFAULT_PIC_MHZ,
         params: Mapping[str, float] | None = None,
         master: bool = True,
+        phases_us: Mapping[int, int] | None = None,
     ) -> None:
         self.seed = seed
         self.clock = Clock()
@@ -67,8 +68,13 @@ class Twin:
         self.master: Master | None = (Master(self.clock, self.network, self.link, supervisor)
                                       if master else None)
         # Slave PWM periods are not synchronised on the robot: each board starts its 20 ms
-        # period at its own phase, drawn from the seed (docs/firmware.md).
-        self.phases_us: dict[int, int] = dict(zip(SCUS, _phases(seed), strict=True))
+        # period at its own phase, drawn from the seed (docs/firmware.md); ``phases_us`` (SCU ->
+        # us) sets some or all of them instead (a robot's, read from its CAN log: ``compare``)
+        self.phases_us: dict[int, int] = seed_phases(seed)
+        for scu, p in (phases_us or {}).items():
+            if scu not in self.phases_us:
+                raise ValueError(f"phases_us: no Slave {scu!r} (the SCUs are {SCUS[0]}..{SCUS[-1]})")
+            self.phases_us[scu] = int(p) % PWM_PERIOD_US
         self.slaves: dict[int, Slave] = {
             scu: Slave(scu, self.clock, self.plant, self.network, phase_us=self.phases_us[scu],
                        pic_mhz=pic_mhz)
@@ -135,3 +141,9 @@ def _phases(seed: int) -> list[int]:
 
     rng = random.Random(derive_seed(seed, STREAM_PHASES))
     return [rng.randrange(0, PWM_PERIOD_US, TIMER_PERIOD_US) for _ in range(N_SCU)]
+
+
+def seed_phases(seed: int) -> dict[int, int]:
+    """The PWM phase (us) each Slave of a twin of ``seed`` starts at, SCU -> us (``Twin.phases_us``
+    when no ``phases_us`` is given)."""
+    return dict(zip(SCUS, _phases(seed), strict=True))

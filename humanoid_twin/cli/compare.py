@@ -1,6 +1,6 @@
 """``humanoid-twin compare LOG`` and ``humanoid-twin calibrate LOG...`` (docs/calibration.md).
 
-    humanoid-twin compare LOG [--seed N] [--support floor|stand] [--out F.rrd] [--json]
+    humanoid-twin compare LOG [--seed N] [--support floor|stand] [--phases log|seed] [--out F.rrd] [--json]
     humanoid-twin calibrate LOG [LOG ...] --fit NAMES [--tie NAMES] [--validate LOG ...]
                             --out FILE.toml [--report FILE.html|.rrd] [--jobs N]
                             [--backend local|ray] [--json]
@@ -55,6 +55,9 @@ def add_compare_parsers(sub: Any) -> None:
                      help="where rollouts run: local processes (default) or a Ray cluster")
     cal.add_argument("--max-evaluations", type=int, default=200,
                      help="the fit's budget of evaluations (about: whole iterations; default 200)")
+    cal.add_argument("--scan", type=int, default=0, metavar="K",
+                     help="first try each parameter alone at K Jacobian steps (10 %% of its value) either "
+                     "side of its start and start from the best (default 0: no scan; servo gains: 2)")
     cal.add_argument("--signals", default="position_deg,current,force_counts,imu_counts",
                      help="signal groups in the residual (default: all but speed)")
     cal.add_argument("--smooth", type=float, default=1.0, metavar="S",
@@ -67,6 +70,9 @@ def _twin_options(p: argparse.ArgumentParser, supports: tuple[str, ...]) -> None
     p.add_argument("--seed", type=int, default=0, help="the twin's seed (default 0)")
     p.add_argument("--support", choices=supports, default="floor",
                    help="floor: on its feet (default); stand: the trunk held in the air")
+    p.add_argument("--phases", choices=("log", "seed"), default="log",
+                   help="the Slaves' PWM phases: log (default: the seed's unless the log's silent rounds "
+                   "contradict them, then read from the log) or seed (the seed's, always)")
     from humanoid_twin.cli.params import add_params_options
 
     add_params_options(p)       # --params FILE.toml, --set NAME=VALUE (docs/parameters.md)
@@ -119,7 +125,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
         _check_out(args.out, "--out", (".rrd",))
     params = twin_params(args)
     log = _read_log(args.log)
-    opts = CompareOptions(seed=args.seed, support=args.support, params=params)
+    opts = CompareOptions(seed=args.seed, support=args.support, params=params, phases=args.phases)
     result = compare_log(log, opts)
     if args.out is not None:
         from humanoid_twin.compare.overlay import write_overlay
@@ -152,6 +158,9 @@ def compare_table(d: dict[str, Any]) -> str:
              f"missing in the log {d['frames_missing']['log']}, warm-up {d['frames_warmup']}, "
              f"foreign {d['frames_foreign']}, error frames {d['error_frames']}",
              f"{'group':<14} {'rms':>9} {'max':>9}"]
+    from_log = [f"SCU {scu} {p['us']} us" for scu, p in d.get("phases", {}).items() if p["from"] == "log"]
+    if from_log:
+        lines.insert(2, "Slaves' phases read from the log (the seed's contradict it): " + ", ".join(from_log))
     for g, v in d["rms"].items():
         lines.append(f"{g:<14} {_fmt(v):>9} {_fmt(d['max_abs'][g]):>9}")
     worst = sorted(((s["rms"] or 0.0, n) for n, s in d["signals"].items()), reverse=True)[:5]
@@ -174,6 +183,8 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
         raise usage_error(f"--jobs {args.jobs}: must be 0 (the cores) or more")
     if not 0 <= args.smooth <= 60:
         raise usage_error(f"--smooth {args.smooth}: must be 0..60 s")
+    if not 0 <= args.scan <= 10:
+        raise usage_error(f"--scan {args.scan}: must be 0..10")
     if args.max_evaluations < 1:
         raise usage_error(f"--max-evaluations {args.max_evaluations}: must be 1 or more")
     try:
@@ -203,10 +214,11 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     from humanoid_twin.master.pic import ROUND_US
 
     problem = FitProblem(logs=logs, unknowns=unknowns, seed=args.seed, support=args.support, groups=groups,
+                         phases=args.phases,
                          base={k: v for k, v in base.items() if k not in fitted_names},
                          window=max(1, round(args.smooth * 1e6 / ROUND_US)))
     result = fit(problem, validate=validate, jobs=jobs, backend=args.backend,
-                 max_evaluations=args.max_evaluations,
+                 max_evaluations=args.max_evaluations, scan=args.scan,
                  progress=lambda text: sys.stderr.write(text + "\n"))
     d = result.as_dict()
     header = (f"humanoid-twin calibrate: {', '.join(str(p) for p in args.logs)} (seed {args.seed}, "

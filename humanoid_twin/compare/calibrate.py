@@ -14,9 +14,11 @@ are evaluated in parallel (local processes, or Ray with ``--backend ray``), with
 percent of each parameter (the measurements are whole degrees and counts: an infinitesimal step
 changes nothing). docs/calibration.md says where and why.
 
-A parameter the logs do not determine (its 95 % interval wider than half its bounds, or its
-Jacobian column near zero) is ``identifiable: false``: its value stays where the fit started,
-it is not written to ``--out``, and the output names the motion that would determine it.
+A parameter the logs do not determine (its 95 % interval, widened for the averaged residuals'
+correlation, wider than +-25 % of its value or than half its bounds; its Jacobian column near
+zero; the floor's friction from logs in which no foot slides) is ``identifiable: false``: its
+value stays where the fit started, it is not written to ``--out``, and the output names the
+motion that would determine it.
 """
 
 from __future__ import annotations
@@ -34,16 +36,17 @@ import numpy as np
 from humanoid_twin.compare.core import CompareOptions, CompareResult, compare_log
 from humanoid_twin.compare.fitparams import Unknown
 from humanoid_twin.compare.robot_log import RobotLog
-from humanoid_twin.compare.signals import GROUPS
+from humanoid_twin.compare.signals import GROUPS, SIGNALS
 
-__all__ = ["FitProblem", "FitResult", "fit", "motion_for", "DEFAULT_GROUPS", "REL_STEP", "BOUND_STEP",
-           "ZERO_COLUMN"]
+__all__ = ["FitProblem", "FitResult", "fit", "motion_for", "shown", "DEFAULT_GROUPS", "REL_STEP",
+           "BOUND_STEP", "ZERO_COLUMN", "REL_CI"]
 
 DEFAULT_GROUPS: tuple[str, ...] = ("position_deg", "current", "force_counts", "imu_counts")
-REL_STEP = 0.03          # finite-difference step: 3 % of the value ...
+REL_STEP = 0.1           # finite-difference step: 10 % of the value ...
 BOUND_STEP = 0.005       # ... and at least 0.5 % of the parameter's range
 MU_FACTOR = 10.0         # the LM regulariser's growth after a step that did not reduce the residual
 ZERO_COLUMN = 1e-9       # a Jacobian column below this norm (quanta per unit) determines nothing
+REL_CI = 0.25            # a 95 % interval wider than +-25 % of the value determines nothing
 
 # the motion that determines a kind of parameter (Param.kind of humanoid_twin/params.py)
 MOTIONS: dict[str, str] = {
@@ -66,6 +69,20 @@ def motion_for(name: str) -> str:
     return MOTIONS.get(head, "a motion in which this parameter changes the measured signals")
 
 
+def shown(name: str, slip_mm: float) -> bool:
+    """Whether the training logs show what parameter ``name`` acts through: the floor's friction
+    acts on the robot's signals through a foot that slides (``slip_mm``: the largest slide of
+    the twin's feet over the training logs at the fitted values, at least ``SLIP_HELD_MM``, a
+    run's "slid"); without a slide, the twin's friction still moves its pads' forces (MuJoCo's
+    pyramidal friction cone) and would stand in for another parameter's error
+    (docs/calibration.md, "Identifiable")."""
+    from humanoid_twin.summary import SLIP_HELD_MM
+
+    if name.split(".", 1)[0] == "floor":
+        return slip_mm >= SLIP_HELD_MM
+    return True
+
+
 # -- one evaluation: the twin against every log ----------------------------------------------------
 @dataclass
 class FitProblem:
@@ -78,6 +95,7 @@ class FitProblem:
     support: str = "floor"
     groups: tuple[str, ...] = DEFAULT_GROUPS
     window: int = 1          # frames each signal's residual is averaged over (--smooth)
+    phases: str = "log"      # the Slaves' phases (CompareOptions.phases)
 
     def values(self, x: Sequence[float]) -> dict[str, float]:
         """The parameters of point ``x``: the fixed ones, then each unknown's names."""
@@ -88,7 +106,7 @@ class FitProblem:
         return out
 
     def run(self, x: Sequence[float], logs: Sequence[RobotLog] | None = None) -> list[CompareResult]:
-        opts = CompareOptions(seed=self.seed, support=self.support, params=self.values(x))
+        opts = CompareOptions(seed=self.seed, support=self.support, params=self.values(x), phases=self.phases)
         return [compare_log(log, opts) for log in (self.logs if logs is None else logs)]
 
     def residual(self, x: Sequence[float]) -> np.ndarray:
@@ -121,6 +139,7 @@ class _Evaluator:
         self.progress = progress
         self.evaluations = 0
         self.best = math.inf
+        self.best_x: np.ndarray | None = None      # the point of the lowest residual evaluated
         self._pool: Any = None
         self._ray_actors: list[Any] = []
         if self.jobs > 1 and backend == "local":
@@ -150,10 +169,12 @@ class _Evaluator:
             out = ray.get(refs)
         else:
             out = [self.problem.residual(x) for x in xs]
-        for r in out:
+        for x, r in zip(xs, out, strict=True):
             self.evaluations += 1
             cost = float(np.sqrt(np.mean(r * r))) if r.size else 0.0
-            self.best = min(self.best, cost)
+            if cost < self.best:
+                self.best = cost
+                self.best_x = np.array(x, dtype=float)
             self.progress(f"calibrate: evaluation {self.evaluations}: residual {cost:.4f} "
                           f"(best {self.best:.4f}) quanta RMS")
         return out
@@ -200,6 +221,68 @@ def _jacobian(ev: _Evaluator, unknowns: Sequence[Unknown], x: np.ndarray, r: np.
     return J
 
 
+def _central_jacobian(ev: _Evaluator, unknowns: Sequence[Unknown], x: np.ndarray,
+                      r: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The Jacobian at the optimum by central differences (one side at a bound), every probe in
+    parallel, and for each column the variance of what a straight line through its three points
+    does not explain (the twin's jitter under that parameter: a quantised reading or a contact
+    that flips, mean square per value; 0 where a side is missing)."""
+    h = _steps(unknowns, x)
+    pts: list[np.ndarray] = []
+    sides: list[tuple[float, float]] = []
+    for i, u in enumerate(unknowns):
+        up = min(x[i] + h[i], u.hi)
+        down = max(x[i] - h[i], u.lo)
+        sides.append((up, down))
+        for v in (up, down):
+            p = x.copy()
+            p[i] = v
+            pts.append(p)
+    cols = ev.many(pts)
+    J = np.empty((r.size, len(unknowns)))
+    jitter = np.zeros(len(unknowns))
+    for i, (up, down) in enumerate(sides):
+        r_up, r_down = cols[2 * i], cols[2 * i + 1]
+        J[:, i] = (r_up - r_down) / (up - down) if up > down else 0.0
+        a, b = up - x[i], x[i] - down
+        if a > 0 and b > 0 and r.size:
+            # the straight line through the outer points misses the middle one by ``miss``: the
+            # least-squares line's residuals through the three (one degree of freedom) sum to
+            # 2/3 of its square (equal steps)
+            miss = (b * r_up + a * r_down) / (a + b) - r
+            jitter[i] = float(np.mean(miss * miss)) * 2.0 / 3.0
+    return J, jitter
+
+
+def _windows(results: Sequence[CompareResult], groups: Sequence[str], window: int) -> float:
+    """The independent pieces of information in the residual: one per averaging window of each
+    log, all its signals together (a contact that flips moves every force and current at once;
+    the average of a window shares its frames): the residual's values / (signals x window)."""
+    out = 0.0
+    for r in results:
+        n = r.residual_vector(groups, window).size
+        signals = sum(1 for s in SIGNALS if s.group in groups and r.residuals[s.name].size)
+        out += n / max(1, signals * max(1, window))
+    return out
+
+
+def _intervals(sysid: Any, r: np.ndarray, J: np.ndarray, jitter: np.ndarray, n_eff: float) -> np.ndarray:
+    """95 % half-widths: ``mujoco.sysid.calculate_intervals`` (the variance times the inverse of
+    JᵀJ, by its eigen-decomposition) with an honest variance for each parameter: the larger of
+    the residual's and that parameter's jitter, times n / ``n_eff`` (the residual's values are
+    not independent: ``_windows``), and Student's quantile on ``n_eff`` - p degrees of freedom."""
+    from scipy.special import stdtrit
+
+    n, p = r.size, J.shape[1]
+    if n <= p:
+        return np.full(p, math.inf)
+    # the toolbox's half-widths for a unit variance (its residual's mean square: 1)
+    _, unit = sysid.calculate_intervals([np.full(n, math.sqrt((n - p) / n))], J)
+    s2 = np.maximum(float(r @ r) / (n - p), np.asarray(jitter, dtype=float)) * n / max(n_eff, 1e-9)
+    dof = max(n_eff - p, 1.0)
+    return np.asarray(unit, dtype=float) * np.sqrt(s2) * float(stdtrit(dof, 0.975) / stdtrit(n - p, 0.975))
+
+
 # -- the fit ------------------------------------------------------------------------------------
 @dataclass
 class FitResult:
@@ -233,9 +316,37 @@ def _norm(results: Sequence[CompareResult], groups: Sequence[str], window: int =
     return _rms(np.concatenate([r.residual_vector(groups, window) for r in results]))
 
 
+def _scan(ev: _Evaluator, unknowns: Sequence[Unknown], x0: np.ndarray, r0: np.ndarray,
+          steps: int) -> np.ndarray:
+    """The fit's start after a coarse scan: each unknown alone at ``steps`` Jacobian steps
+    (:data:`REL_STEP` of its value) on either side of ``x0``, within its bounds, every point in
+    parallel; each takes its best value (the residual is not one smooth valley: a local fit
+    from the default can stop in another, docs/calibration.md)."""
+    h = _steps(unknowns, x0)
+    pts: list[np.ndarray] = []
+    owner: list[int] = []
+    for i, u in enumerate(unknowns):
+        for k in [*range(-steps, 0), *range(1, steps + 1)]:
+            v = min(max(x0[i] + k * h[i], u.lo), u.hi)
+            if v != x0[i]:
+                p = x0.copy()
+                p[i] = v
+                pts.append(p)
+                owner.append(i)
+    x = x0.copy()
+    best = [_rms(r0)] * len(unknowns)
+    for i, p, r in zip(owner, pts, ev.many(pts), strict=True):
+        if _rms(r) < best[i]:
+            best[i] = _rms(r)
+            x[i] = p[i]
+    return x
+
+
 def fit(problem: FitProblem, *, validate: Sequence[RobotLog] = (), jobs: int = 1, backend: str = "local",
-        max_evaluations: int = 200, progress: Callable[[str], None] | None = None) -> FitResult:
-    """Fit ``problem``'s unknowns (see the module's docstring); ``validate``: logs kept apart."""
+        max_evaluations: int = 200, progress: Callable[[str], None] | None = None,
+        scan: int = 0) -> FitResult:
+    """Fit ``problem``'s unknowns (see the module's docstring); ``validate``: logs kept apart;
+    ``scan``: a coarse scan of each unknown first (:func:`_scan`, ``--scan``)."""
     from humanoid_twin.plant.sysid import toolbox
 
     sysid = toolbox()
@@ -265,22 +376,36 @@ def fit(problem: FitProblem, *, validate: Sequence[RobotLog] = (), jobs: int = 1
             budget["left"] -= len(unknowns)
             return _jacobian(ev, unknowns, xv, np.asarray(r, dtype=float).reshape(-1))
 
+        ev.best, ev.best_x = _rms(r0), x0.copy()
+        if scan > 0:
+            start = _scan(ev, unknowns, x0, r0, scan)
+            budget["left"] -= 2 * scan * len(unknowns)
+            params.update_from_vector(start)
         max_iters = max(1, budget["left"] // (len(unknowns) + 2))
         opt, _ = _optimize(sysid, params, residual_fn, jacobian, max_iters, _steps(unknowns, x0))
         x = np.clip(opt.as_vector(), [u.lo for u in unknowns], [u.hi for u in unknowns])
         after = problem.run(x)
         r1 = np.concatenate([r.residual_vector(problem.groups, problem.window) for r in after])
         ev.evaluations += 1
-        J = _jacobian(ev, unknowns, x, r1)
-        _, half = sysid.calculate_intervals([r1], J)
+        if ev.best_x is not None and ev.best < _rms(r1):
+            # a point evaluated on the way (a scan's, a Jacobian's probe) is better than where the
+            # optimiser stopped: the residual's jumps misled it; the best point is the result
+            x = np.clip(ev.best_x, [u.lo for u in unknowns], [u.hi for u in unknowns])
+            after = problem.run(x)
+            r1 = np.concatenate([r.residual_vector(problem.groups, problem.window) for r in after])
+            ev.evaluations += 1
+        J, jitter = _central_jacobian(ev, unknowns, x, r1)
+        half = _intervals(sysid, r1, J, jitter, _windows(after, problem.groups, problem.window))
     finally:
         ev.close()
     fitted: dict[str, dict[str, Any]] = {}
     values = dict(problem.base)
     col_norm = np.linalg.norm(J, axis=0) if J.size else np.zeros(len(unknowns))
+    slip_mm = max((r.slip_mm for r in after), default=0.0)
     for i, u in enumerate(unknowns):
         hw = float(half[i]) if i < len(half) else math.inf
-        ok = math.isfinite(hw) and 2 * hw <= (u.hi - u.lo) / 2 and col_norm[i] > ZERO_COLUMN
+        ok = (math.isfinite(hw) and col_norm[i] > ZERO_COLUMN and 2 * hw <= (u.hi - u.lo) / 2
+              and hw <= REL_CI * abs(float(x[i])) and shown(u.names[0], slip_mm))
         entry: dict[str, Any] = {"value": float(x[i]) if ok else u.default, "start": u.default,
                                  "ci95": [float(x[i]) - hw, float(x[i]) + hw] if ok else None,
                                  "identifiable": bool(ok)}

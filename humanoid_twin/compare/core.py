@@ -19,6 +19,10 @@ each SCU, repeated on the Master's schedule (seed 002 slide 27), so that the twi
 the log's first positions and calibrate there, as the robot's did at its boot, before the log's
 first frame. The twin's frames of the pre-roll are not compared. A round in which the twin's
 board still calibrates while the robot's did not is counted (``frames_warmup``) and left out.
+
+The Slaves' PWM phases decide which actuation packets they leave unanswered: with
+``CompareOptions.phases`` "log" (the default) a Slave whose seeded phase the log's silences
+contradict starts at the phase read from the log instead (humanoid_twin/compare/phases.py).
 """
 
 from __future__ import annotations
@@ -34,14 +38,16 @@ import numpy as np
 from humanoid_twin.clock import US_PER_S
 from humanoid_twin.compare.robot_log import ACTUATION_OF, SENSORS_OF, LogFrame, RobotLog
 from humanoid_twin.compare.signals import GROUP_UNITS, GROUPS, QUANTUM, SIGNALS, Signal, decode_packet
+from humanoid_twin.hardware import PWM_PERIOD_US
 from humanoid_twin.master.pic import ROUND_US, SLAVE_PERIOD_US, TIMER_PERIOD_US
 from humanoid_twin.protocol import canframes
 from humanoid_twin.protocol.wire import STATUS_CALIB
 
-__all__ = ["CompareOptions", "CompareResult", "LogPlayer", "SUPPORTS", "compare_frames", "run_twin",
-           "compare_log", "key_frames"]
+__all__ = ["CompareOptions", "CompareResult", "LogPlayer", "PHASES", "SUPPORTS", "compare_frames", "run_twin",
+           "compare_log", "key_frames", "twin_phases"]
 
 SUPPORTS = ("floor", "stand")
+PHASES = ("log", "seed")
 # a log that starts after the boot: the twin's boot on the log's first actuation, before it
 # (the Slaves' calibration, 100 + 25 PWM periods, then a margin), whole rounds of the schedule
 PREROLL_US = 375 * ROUND_US
@@ -59,6 +65,9 @@ class CompareOptions:
     seed: int = 0
     support: str = "floor"
     params: Mapping[str, float] = field(default_factory=dict)
+    # the Slaves' PWM phases: "log" (the seed's, unless the log contradicts them: then the
+    # phases read from the log, humanoid_twin/compare/phases.py) or "seed" (the seed's, always)
+    phases: str = "log"
 
 
 @dataclass
@@ -101,6 +110,9 @@ class CompareResult:
     residuals: dict[str, np.ndarray]
     options: CompareOptions
     wall_s: float = 0.0
+    # per SCU: the PWM phase the twin's Slave ran at (us) and where it came from ("seed"/"log")
+    phases: dict[int, tuple[int, str]] = field(default_factory=dict)
+    slip_mm: float = 0.0              # the largest distance a foot of the twin slid (monitor.SoleSlide)
 
     def as_dict(self) -> dict[str, Any]:
         return {
@@ -118,6 +130,7 @@ class CompareResult:
             "status_mismatches": self.status_mismatches,
             "started_after_boot": self.started_after_boot,
             "clock_offset_s": self.clock_offset_s,
+            "phases": {str(scu): {"us": p, "from": src} for scu, (p, src) in sorted(self.phases.items())},
             "rms": self.rms,
             "max_abs": self.max_abs,
             "signals": {name: s.as_dict() for name, s in self.signals.items()},
@@ -242,17 +255,31 @@ def _hold_support(twin: Any, support: str) -> None:
         twin.plant.hold_trunk()
 
 
-def run_twin(log: RobotLog, opts: CompareOptions) -> list[LogFrame]:
+def twin_phases(log: RobotLog, opts: CompareOptions) -> dict[int, tuple[int, str]]:
+    """The Slaves' phases a comparison runs with (``opts.phases``): SCU -> (us, "seed" or "log")."""
+    from humanoid_twin.compare.phases import phases_for
+    from humanoid_twin.twin import seed_phases
+
+    own = seed_phases(opts.seed)
+    if opts.phases == "seed":
+        return {scu: (p, "seed") for scu, p in own.items()}
+    return phases_for(log, own)
+
+
+def run_twin(log: RobotLog, opts: CompareOptions, phases: Mapping[int, int] | None = None,
+             slide: Any = None) -> list[LogFrame]:
     """Drive a twin (no Master; :class:`LogPlayer` in its place) with the log's Master frames up
     to the log's end (after a pre-roll when the log starts after the boot: the log is then
     :meth:`RobotLog.shifted` by :data:`PREROLL_US`); the robot's frames its wire carried from the
-    log's start, in time order."""
+    log's start, in time order. ``phases``: the Slaves' phases (SCU -> us; the seed's otherwise);
+    ``slide``: a :class:`humanoid_twin.monitor.SoleSlide` fed the twin's soles every PWM period
+    (how far the twin's feet slid: ``calibrate`` asks it of the floor's friction)."""
     from humanoid_twin.twin import Twin
 
     kwargs: dict[str, Any] = {}
     if opts.params:
         kwargs["params"] = dict(opts.params)
-    twin = Twin(seed=opts.seed, master=False, **kwargs)
+    twin = Twin(seed=opts.seed, master=False, phases_us=phases, **kwargs)
     try:
         _hold_support(twin, opts.support)
         collector = _Collector()
@@ -261,6 +288,10 @@ def run_twin(log: RobotLog, opts: CompareOptions) -> list[LogFrame]:
         if preroll:
             log = log.shifted(PREROLL_US)
         LogPlayer(twin, log, preroll)
+        if slide is not None:
+            plant = twin.plant
+            twin.every(PWM_PERIOD_US, lambda: slide.add(plant.soles_on_surface_mm()),
+                       PREROLL_US if preroll else 0)
         twin.advance_to(log.duration_us + TAIL_US)
         if preroll:
             return [f._replace(t_us=f.t_us - PREROLL_US) for f in collector.frames if f.t_us >= PREROLL_US]
@@ -364,9 +395,17 @@ def compare_log(log: RobotLog, opts: CompareOptions | None = None) -> CompareRes
     opts = opts if opts is not None else CompareOptions()
     if opts.support not in SUPPORTS:
         raise ValueError(f"support must be one of {', '.join(SUPPORTS)}, got {opts.support!r}")
+    if opts.phases not in PHASES:
+        raise ValueError(f"phases must be one of {', '.join(PHASES)}, got {opts.phases!r}")
     t0 = time.perf_counter()
-    frames = run_twin(log, opts)
+    phases = twin_phases(log, opts)
+    from humanoid_twin.monitor import SoleSlide
+
+    slide = SoleSlide()
+    frames = run_twin(log, opts, {scu: p for scu, (p, _) in phases.items()}, slide)
     result = compare_frames(log, frames, opts, time.perf_counter() - t0)
+    result.phases = phases
+    result.slip_mm = slide.slip_mm
     return result
 
 

@@ -74,9 +74,27 @@ def test_own_log_gives_zero_on_both_cores(flexao_log: Path, tmp_path: Path, core
 
 def test_another_seed_differs(flexao_log: Path) -> None:
     """The comparison can fail: another seed (other sensor noise, other PWM phases) is seen."""
-    result = compare_log(read_robot_log(flexao_log), CompareOptions(seed=5))
+    result = compare_log(read_robot_log(flexao_log), CompareOptions(seed=5, phases="seed"))
     assert result.rms["position_deg"] > 0.0
     assert result.frames_missing["twin"] + result.frames_missing["log"] > 0
+
+
+def test_phases_are_read_from_the_log(flexao_log: Path) -> None:
+    """A robot's Slaves run at phases of their own: the twin of another seed reads them from the
+    log's silent rounds and starts its Slaves there, so that it is silent in the same rounds; a
+    log of its own seed keeps the seed's phases (and compares exactly)."""
+    from humanoid_twin.twin import seed_phases
+
+    r = _cli("compare", str(flexao_log), "--seed", "5", "--json")
+    assert r.returncode == 0, r.stderr
+    d = json.loads(r.stdout)
+    assert d["frames_missing"] == {"twin": 0, "log": 0}          # with --phases seed: hundreds
+    assert {p["from"] for p in d["phases"].values()} >= {"log"}
+    five = seed_phases(5)
+    assert all(p["us"] == five[int(scu)] for scu, p in d["phases"].items() if p["from"] == "seed")
+    assert "phases read from the log" in _cli("compare", str(flexao_log), "--seed", "5").stdout
+    same = compare_log(read_robot_log(flexao_log), CompareOptions(seed=0))
+    assert {src for _, src in same.phases.values()} == {"seed"}
 
 
 def _messages(path: Path) -> list[can.Message]:
