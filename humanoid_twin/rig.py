@@ -235,7 +235,8 @@ class Rig:
         if opts.out is not None or opts.live is not None:
             from humanoid_twin.recording import Recorder, compact_for
 
-            live = {} if opts.live is None else {"stream_to": opts.live, "chunk_s": LIVE_CHUNK_S}
+            live: dict[str, Any] = ({} if opts.live is None
+                                    else {"stream_to": opts.live, "chunk_s": LIVE_CHUNK_S})
             self.recorder = Recorder(opts.out, twin, compact=compact_for(expected_s), **live)
         if opts.can_log is not None:
             from humanoid_twin.recording import CanLog
@@ -265,7 +266,7 @@ class Rig:
 
     def stopped(self) -> bool:
         """The Master's supervisor is in ``safe`` or ``estop``."""
-        return self.twin.master.supervisor.mode in (SAFE, ESTOP)
+        return self.twin.master.supervisor.mode in (SAFE, ESTOP)  # type: ignore[union-attr]  # a rig's twin has its Master
 
     def tolerates(self) -> bool:
         """A failed host request is part of what the run shows (the summary's ``host_error``)
@@ -304,7 +305,7 @@ class Rig:
         client booted the robot: ``serve``)."""
         if not self.opts.tilt:
             return
-        sup = self.twin.master.supervisor
+        sup = self.twin.master.supervisor  # type: ignore[union-attr]  # as above
         started = [False]
 
         def on_mode(kind: str, t_us: int, value: Any) -> None:

@@ -780,7 +780,7 @@ class Session:
                  on_twin: Callable[[Any], None] | None = None,
                  on_boot: Callable[[float, str | None], None] | None = None) -> None:
         self.opts = opts
-        self.rig: Rig | None = None   # type: ignore[assignment]  (set below; a --wall-timeout may land first)
+        self.rig: Rig | None = None   # set below; a --wall-timeout may land first
         self.spec = with_fields(load_scenario(opts.scenario), opts.scenario_fields)   # --set scenario.FIELD=V
         self.label = scenario_name(opts.scenario)
         self.plan = scenario_plan(self.spec, self.label, opts.T, opts.motion, opts.perna, opts.control)
@@ -860,7 +860,7 @@ class Session:
         truth = twin.plant.truth()
         return {
             "t_s": twin.now_s,
-            "mode": twin.master.supervisor.mode_name,
+            "mode": twin.master.supervisor.mode_name,  # type: ignore[union-attr]  # a rig's twin has its Master
             "fell": mon.fell or truth.fell,
             "fell_at_s": mon.fell_at_s,
             "trunk_tilt_deg": truth.trunk_tilt_deg,
@@ -1000,7 +1000,7 @@ def open_run(opts: RunOptions | str | Scenario = "stand", /, **fields: Any) -> S
         outputs.discard()
         raise ScenarioInputError(f"cannot write there: {exc}") from None
     if temp:
-        opts = dataclasses.replace(opts, **temp, can_log_name=finals["can_log"].name if "can_log" in finals
+        opts = dataclasses.replace(opts, **temp, can_log_name=finals["can_log"].name if "can_log" in finals  # type: ignore[arg-type]  # the outputs' paths
                                    else opts.can_log_name)
     try:
         session = Session(opts)

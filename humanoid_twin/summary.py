@@ -31,7 +31,7 @@ def build_summary(rig: Rig, scenario: str, plan: Plan, *, completed: bool, wall_
     """The summary of the run ``scenario`` (its name as the user gave it) on ``rig``, whose plan
     was ``plan``: every key of :data:`SUMMARY_KEYS` that applies, in that order."""
     twin, monitor, opts = rig.twin, rig.monitor, rig.opts
-    sup = twin.master.supervisor
+    sup = twin.master.supervisor  # type: ignore[union-attr]  # a run's twin has its Master
     started = [s for s in opts.faults if _started(s, rig)]
     motion = monitor.motion if monitor.motion is not None and monitor.motion.samples else None
     summary: dict[str, Any] = {
@@ -54,7 +54,7 @@ def build_summary(rig: Rig, scenario: str, plan: Plan, *, completed: bool, wall_
         "wall_s": round(wall_s, 3),
         "rtf": round(twin.now_s / wall_s, 3) if wall_s > 0 else None,
         "can_frames": twin.network.frames_sent,
-        "serial_frames": twin.master.stats()["serial_frames_received"],
+        "serial_frames": twin.master.stats()["serial_frames_received"],  # type: ignore[union-attr]  # as above
         "boot_s": None if rig.boot_s is None else round(rig.boot_s, 3),
         "booted": rig.boot_error is None,
         "completed": completed,

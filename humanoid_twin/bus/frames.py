@@ -157,8 +157,8 @@ class Frame:
     is_error_frame = False
     is_fd = False
 
-    def __init__(self, arbitration_id: int, data: bytes = b"", timestamp: float = 0.0,
-                 channel: object = None, is_rx: bool = False) -> None:
+    def __init__(self, arbitration_id: int, data: bytes | bytearray = b"", timestamp: float = 0.0,
+                 channel: can.typechecking.Channel | None = None, is_rx: bool = False) -> None:
         self.arbitration_id = arbitration_id
         self.data = bytes(data)
         self.dlc = len(self.data)
@@ -196,14 +196,14 @@ def load_frame(frame: Frame | None, arbitration_id: int, data: bytes, bits: int)
 
 def as_message(msg: Frame | can.Message) -> can.Message:
     """``msg`` as a :class:`can.Message` for python-can code (a :class:`Frame` converted)."""
-    return msg.to_message() if type(msg) is Frame else msg
+    return msg.to_message() if type(msg) is Frame else msg  # type: ignore[return-value]  # a Message
 
 
 # -- acceptance filtering (the one place it is parsed and matched) ------------------------------
 Filters = tuple[tuple[int, int, "bool | None"], ...]
 
 
-def parse_filters(can_filters: list[dict] | None) -> Filters | None:
+def parse_filters(can_filters: can.typechecking.CanFilters | None) -> Filters | None:
     """python-can ``can_filters`` (``can_id``, ``can_mask``, optional ``extended``) as int tuples
     ``(id & mask, mask, extended-or-None)``; None (or empty) accepts every frame.
 

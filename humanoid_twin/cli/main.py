@@ -611,7 +611,7 @@ def _check_remote(host: str, allow: bool) -> None:
         addrs = {info[4][0] for info in infos}
     except (socket.gaierror, UnicodeError) as exc:
         raise _usage_error(f"--host {host}: not an address or a known host name ({exc})") from None
-    remote = [a for a in addrs if not ipaddress.ip_address(a.split("%")[0]).is_loopback]
+    remote = [a for a in addrs if not ipaddress.ip_address(a.split("%")[0]).is_loopback]  # type: ignore[union-attr]  # an IP family's address is a str
     if not remote:
         return
     if not allow:

@@ -128,15 +128,15 @@ def cmd_params(args: argparse.Namespace) -> int:
             sys.stdout.write(out + "\n")
         else:
             rows = [(p.name, p.unit, f"{p.default:.6g}", f"{p.min:.6g}", f"{p.max:.6g}", p.doc) for p in reg]
-            sys.stdout.write(_table(rows, ("name", "unit", "default", "min", "max", "doc")))
+            sys.stdout.write(_table(rows, ("name", "unit", "default", "min", "max", "doc")))  # type: ignore[arg-type]  # rows of text
         return 0
     if action == "show":
         values = _load(args.file)
         if as_json:
             sys.stdout.write(json.dumps(values) + "\n")
         else:
-            rows = [(n, f"{v:.6g}", f"{reg.get(n).default:.6g}", reg.get(n).unit) for n, v in values.items()]
-            sys.stdout.write(_table(rows, ("name", "value", "default", "unit")) if rows
+            rows = [(n, f"{v:.6g}", f"{reg.get(n).default:.6g}", reg.get(n).unit) for n, v in values.items()]  # type: ignore[misc]  # as above
+            sys.stdout.write(_table(rows, ("name", "value", "default", "unit")) if rows  # type: ignore[arg-type]  # as above
                              else f"{args.file}: no parameters (every default)\n")
         return 0
     a, b = _load(args.a), _load(args.b)
@@ -149,8 +149,8 @@ def cmd_params(args: argparse.Namespace) -> int:
     if as_json:
         sys.stdout.write(json.dumps({n: {"a": va, "b": vb} for n, (va, vb) in changed.items()}) + "\n")
     elif changed:
-        rows = [(n, f"{va:.6g}", f"{vb:.6g}", reg.get(n).unit) for n, (va, vb) in changed.items()]
-        sys.stdout.write(_table(rows, ("name", str(args.a), str(args.b), "unit")))
+        rows = [(n, f"{va:.6g}", f"{vb:.6g}", reg.get(n).unit) for n, (va, vb) in changed.items()]  # type: ignore[misc]  # as above
+        sys.stdout.write(_table(rows, ("name", str(args.a), str(args.b), "unit")))  # type: ignore[arg-type]  # as above
     else:
         sys.stdout.write(f"{args.a} and {args.b} set the same values\n")
     return 0

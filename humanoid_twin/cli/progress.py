@@ -78,9 +78,9 @@ class RunProgress:
         if not self.tty and self._last is not None and self._last[1] is not None:
             t_s, end_s = self._last
             if self._next_pct <= 100:          # the 100 % line was not written yet
-                if t_s + TICK_S >= end_s - 1e-9:   # the last tick before the end: the run got there
-                    t_s = end_s
-                pct = 100.0 * t_s / end_s if end_s > 0 else 100.0
+                if t_s + TICK_S >= end_s - 1e-9:  # type: ignore[operator]  # the last tick before the end: the run got there (set with _last)
+                    t_s = end_s  # type: ignore[assignment]  # as above
+                pct = 100.0 * t_s / end_s if end_s > 0 else 100.0  # type: ignore[operator]  # as above
                 self._line(f"{pct:3.0f}% {t_s:.1f}/{end_s:.1f} s simulated, "
                            f"{time.perf_counter() - self._t0:.1f} s wall")
             self._next_pct = 110

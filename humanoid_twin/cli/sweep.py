@@ -201,7 +201,7 @@ def plan_sweep(args: argparse.Namespace, parser: argparse.ArgumentParser
         args.x = args.x.replace("-", "_")     # the column's name (--x pic-mhz: pic_mhz)
         if args.x not in params and args.x != "seed" and not any(r.split("=")[0].strip() == args.x
                                                                   for r in args.randomize):
-            given = " ".join(params) or "it has no --param"
+            given = " ".join(params) or "it has no --param"  # type: ignore[assignment]  # the name reused for the message
             raise SweepError(f"--x {args.x}: not a --param of this sweep ({given})")
     elif args.metric is not None or args.x is not None:
         raise SweepError("--metric and --x go with --plot FILE.png")
@@ -222,7 +222,7 @@ def option_kind(action: argparse.Action) -> str:
     if action.type is None or isinstance(action, argparse._AppendAction):
         return "string"
     try:
-        value = action.type("1")
+        value = action.type("1")  # type: ignore[operator]  # a run option's type is a callable
     except (argparse.ArgumentTypeError, TypeError, ValueError):
         return "string"
     if isinstance(value, bool):
@@ -239,7 +239,7 @@ def known_columns(parser: argparse.ArgumentParser, params: dict[str, list[str]])
     from humanoid_twin.params import registry
     from humanoid_twin.summary import table_columns
 
-    run = parser.run_parser
+    run = parser.run_parser  # type: ignore[attr-defined]  # set by the CLI's parser
     options = {a.dest: option_kind(a) for a in run._actions     # argparse has no public list of them
                if a.option_strings and a.dest not in NOT_PARAMS and a.dest != "help"
                and a.nargs != 0}
@@ -375,7 +375,7 @@ def sweep_command(args: argparse.Namespace, parser: argparse.ArgumentParser) -> 
         signals.user_code_done()    # the runs' own code runs in their own processes
     if args.recordings is not None:
         args.recordings.mkdir(parents=True, exist_ok=True)
-    points = randomized_grid(params, args.draws, seeds)     # the grid x the drawn robots x the seeds
+    points = randomized_grid(params, args.draws, seeds)  # type: ignore[arg-type]  # the grid x the drawn robots x the seeds (values as text)
     progress = None if args.no_progress else sys.stderr
     if progress is not None:
         where = args.address or "a local Ray" if args.backend == "ray" else "this machine"

@@ -226,7 +226,7 @@ def preroll_frames(log: RobotLog) -> list[LogFrame]:
     for t in range(0, PREROLL_US, ROUND_US):
         for scu, ids in canframes.ACTUATION_IDS.items():
             for idx, arb in enumerate(ids):
-                f = first.get(arb)
+                f = first.get(arb)  # type: ignore[assignment]  # every actuation id is in the log's first frames
                 if f is not None:
                     slot_us = t + (scu - 1) * SLAVE_PERIOD_US + 2 * idx * TIMER_PERIOD_US
                     out.append(LogFrame(slot_us, arb, f.data))
@@ -256,7 +256,7 @@ def run_twin(log: RobotLog, opts: CompareOptions) -> list[LogFrame]:
     try:
         _hold_support(twin, opts.support)
         collector = _Collector()
-        twin.network.add_listener(collector)
+        twin.network.add_listener(collector)  # type: ignore[arg-type]  # a listener by duck typing
         preroll = preroll_frames(log) if log.started_after_boot else []
         if preroll:
             log = log.shifted(PREROLL_US)

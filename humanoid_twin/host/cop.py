@@ -127,12 +127,12 @@ def _scu(scu: Any) -> int:
 
 def _sample(H: Any, s: int) -> tuple[list[float], list[float], list[float]]:
     r = readspecial(H, s)
-    react = list(r.special) if r.error == ErrorCode.OK else [math.nan] * 4
+    react = list(r.special) if r.error == ErrorCode.OK else [math.nan] * 4  # type: ignore[arg-type]  # answered (error OK)
     p = readjoint(H, s, PARAM_POSITION)
-    pos = list(p.servos) if p.error == ErrorCode.OK else [math.nan] * 3
+    pos = list(p.servos) if p.error == ErrorCode.OK else [math.nan] * 3  # type: ignore[arg-type]  # answered (error OK)
     c = readjoint(H, s, PARAM_CURRENT)
-    cur = list(c.servos) if c.error == ErrorCode.OK else [math.nan] * 3
-    return react, pos, cur
+    cur = list(c.servos) if c.error == ErrorCode.OK else [math.nan] * 3  # type: ignore[arg-type]  # answered (error OK)
+    return react, pos, cur  # type: ignore[return-value]  # ints widen to floats
 
 
 def _check_time(name: str, v: Any, positive: bool = True) -> float:

@@ -662,7 +662,7 @@ def raise_for_error(result: tuple[Any, ...], what: str = "request", H: Any = Non
             raise SupervisorRefused(
                 f"{what}: refused by the Master's supervisor: mode {sup.mode_name}{fault} "
                 f"({hint})", code, rx, result.tries,  # type: ignore[attr-defined]
-                sup.mode, sup.fault or 0, sup.node or 0)
+                sup.mode, sup.fault or 0, sup.node or 0)  # type: ignore[arg-type]  # the state byte of an answered request
     raise _EXC[code](f"{what}: {result.errorstr}", code, result.rx, result.tries)  # type: ignore[attr-defined]
 
 
@@ -773,7 +773,7 @@ class HumanoidClient:
     def can_status(self) -> CanStatus:
         """``readcanstat``: error state, TEC, REC, answered-slaves mask."""
         r = self._done(readcanstat(self.serial_port, max_tries=self.max_tries), "readcanstat")
-        return CanStatus(*r.array, r.state)
+        return CanStatus(*r.array, r.state)  # type: ignore[call-arg]  # CanStatus is a NamedTuple of 4
 
     def read(self, scu: int, what: str = "position") -> tuple[tuple[int, int, int], int]:
         """``readjoint``: (``values``, ``status``) with ``what`` in position/velocity/current."""

@@ -375,10 +375,10 @@ def power_on(
             r = readjoint(H, s, PARAM_POSITION)
             if r.error != ErrorCode.OK:
                 continue
-            status[s] = r.state
-            if not r.state & STATUS_CALIB:
+            status[s] = r.state  # type: ignore[assignment]  # an answer's state (error OK)
+            if not r.state & STATUS_CALIB:  # type: ignore[operator]  # as above
                 seen_running.add(s)
-            elif r.state & want == want and s in seen_running:
+            elif r.state & want == want and s in seen_running:  # type: ignore[operator]  # as above
                 pending.discard(s)
         if not pending:
             return status

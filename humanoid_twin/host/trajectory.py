@@ -154,7 +154,7 @@ def sample_traj3(
         vals = []
         for param in (PARAM_POSITION, PARAM_VELOCITY, PARAM_CURRENT):
             r = readjoint(H, s, param)
-            vals.append(list(r.servos) if r.error == ErrorCode.OK else [math.nan] * 3)
+            vals.append(list(r.servos) if r.error == ErrorCode.OK else [math.nan] * 3)  # type: ignore[arg-type]  # answered (error OK)
         rows.append([ts, *vals[0], *vals[1], *vals[2]])
         i += 1
         wait = min(t0 + i * dt, t_end) - timebase.now(H)
@@ -192,7 +192,7 @@ def sample_traj(
         raise ValueError(f"k must be [KI, KP, KD], got {k!r}")
     r = readjoint(H, s, PARAM_POSITION)
     raise_for_error(r, f"sample_traj: read positions (SCU {s})")
-    hold = np.asarray(r.servos[1:], dtype=float)
+    hold = np.asarray(r.servos[1:], dtype=float)  # type: ignore[index]  # raise_for_error above
     p0 = np.concatenate([[float(pos0)], hold])
     pF = np.concatenate([[float(posF)], hold])
     arr3 = sample_traj3(H, T, p0, pF, np.tile(kk, (N_SERVOS, 1)), scu=s, Textra=Textra, settle=settle, dt=dt,

@@ -30,7 +30,7 @@ class CanDrivers:
     def __init__(self, network: CanNetwork, name: str) -> None:
         self.network = network
         self.name = name
-        self.controller: CanController | None = None
+        self.controller: CanController = None  # type: ignore[assignment]  # set by canInit (attach)
         self.rxb: list[Frame | None] = [None] * PIC_RX_BUFFERS  # RXB0, RXB1 (full = not None)
         self.txb: list[Frame | None] = [None] * PIC_TX_BUFFERS  # last message requested per TXBn
         self.rx_overflows = 0

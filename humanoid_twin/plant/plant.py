@@ -204,9 +204,9 @@ class Plant(BoardIO):
             need(mujoco.mjtObj.mjOBJ_BODY, foot)
             self._sole_site[foot] = need(mujoco.mjtObj.mjOBJ_SITE, f"{foot}_sole")
             adrs = []
-            for p, suffix in enumerate(PAD_SUFFIXES):
+            for p, suffix in enumerate(PAD_SUFFIXES):  # type: ignore[assignment]  # g: a Param, then a geom id
                 g = need(mujoco.mjtObj.mjOBJ_GEOM, f"{foot}_pad_{suffix}")
-                self._pad_of_geom[g] = (f, p)
+                self._pad_of_geom[g] = (f, p)  # type: ignore[assignment]  # as above
                 s = need(mujoco.mjtObj.mjOBJ_SENSOR, f"{foot}_{suffix}_touch")
                 adrs.append(int(m.sensor_adr[s]))
             self._touch_adr[foot] = tuple(adrs)  # type: ignore[assignment]
@@ -258,7 +258,7 @@ class Plant(BoardIO):
         self._force_fault_rng = np.random.default_rng(ss.spawn(1)[0])
         # the body board's inclinometer and gyroscope, with their biases (imu.*_bias_*)
         bias = tuple(by_kind.get(f"imu.{b}", {}).get("", 0.0) for b in _IMU_BIASES)
-        self._imu = TrunkImu(m, ss.spawn(1)[0], self._sense, bias=bias if any(bias) else None)
+        self._imu = TrunkImu(m, ss.spawn(1)[0], self._sense, bias=bias if any(bias) else None)  # type: ignore[arg-type]  # four biases
         self._force_stuck: dict[int, list[int] | None] = {}
         self._stuck_actuators: set[int] = set()
         self.reset()
@@ -310,7 +310,7 @@ class Plant(BoardIO):
         while k > 0:
             g = self.t_us - self.t_us % grid
             if self._tilt_grid_us != g:
-                self._apply_tilt(self._tilt_profile(g / US_PER_S))
+                self._apply_tilt(self._tilt_profile(g / US_PER_S))  # type: ignore[misc]  # set with the profile
                 self._tilt_grid_us = g
             n = min(k, max(1, -(-(g + grid - self.t_us) // ts)))
             mujoco.mj_step(self.model, self.data, nstep=n)
@@ -535,7 +535,7 @@ class Plant(BoardIO):
         self._sync()
         key = (self.t_us, self._tilt_deg, self._epoch, self._qpos.tobytes(), self._qvel.tobytes())
         if self._truth_key == key:
-            return self._truth_cached
+            return self._truth_cached  # type: ignore[has-type]  # set with _truth_key
         self._truth_cached = self._truth.compute(self.t_us, self._tilt_deg)
         self._truth_key = key
         return self._truth_cached

@@ -63,7 +63,7 @@ JOINT_KEY_TEXT = ("Each plot: one joint, degrees (servo frame). **grey** referen
 
 
 def _plot(name: str, origin: str, *, legend: bool = True, y_range: tuple[float, float] | None = None,
-          **kw: object) -> rrb.TimeSeriesView:
+          **kw: Any) -> rrb.TimeSeriesView:
     axis = None if y_range is None else rrb.ScalarAxis(range=y_range)
     return rrb.TimeSeriesView(name=name, origin=origin, plot_legend=_LEGEND if legend else _NO_LEGEND,
                               axis_y=axis, **kw)
@@ -110,7 +110,7 @@ def log_params(rec: Any, params: Mapping[str, float]) -> None:
     (name -> value; rerun's recording properties) and the Parameters tab's static text."""
     from humanoid_twin.params import params_digest
 
-    rec.send_property(PARAMS, rr.AnyValues(**{name: float(v) for name, v in params.items()},
+    rec.send_property(PARAMS, rr.AnyValues(**{name: float(v) for name, v in params.items()},  # type: ignore[arg-type]  # rerun's **kwargs of any value
                                            params_digest=params_digest(params)))
     rec.log(PARAMS, rr.TextDocument(params_markdown(params), media_type=rr.MediaType.MARKDOWN), static=True)
 
@@ -248,7 +248,7 @@ def default_blueprint(
     if upper:
         tabs.append(_joint_grid(upper, "Upper body"))
     if params:
-        tabs.append(rrb.TextDocumentView(origin=PARAMS, name="Parameters"))
+        tabs.append(rrb.TextDocumentView(origin=PARAMS, name="Parameters"))  # type: ignore[arg-type]  # a view is a tab too
     return rrb.Blueprint(
         rrb.Horizontal(left, rrb.Tabs(*tabs, active_tab=_tab_index(tabs, active_tab)), column_shares=[2, 3]),
         rrb.TimePanel(timeline="sim_time", state="collapsed"),

@@ -294,7 +294,7 @@ class DecodedFrame(NamedTuple):
     arbitration_id: int
     src: int                    # source address (0 = Master, 1..8 = SCU)
     dst: int                    # destination address
-    index: int                  # packet index 0/1
+    index: int  # type: ignore[assignment]  # packet index 0/1 (the field, not tuple.index)
     op: int                     # 0 actuation (Master -> Slave), 1 sensors (Slave -> Master)
     name: str                   # DBC message name, e.g. "Actuation1_S3"
     signals: dict[str, Any]     # DBC signal values
@@ -318,5 +318,5 @@ def decode_can_log(
         src, dst, index, op = canframes.split_id(msg.arbitration_id)
         yield DecodedFrame(
             msg.timestamp, msg.arbitration_id, src, dst, index, op, m.name,
-            m.decode(bytes(msg.data), decode_choices=False),
+            m.decode(bytes(msg.data), decode_choices=False),  # type: ignore[arg-type]  # a single-frame message decodes to a dict
         )

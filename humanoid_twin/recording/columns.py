@@ -186,7 +186,7 @@ def _prev_state(t: Tick, group: ColumnGroup) -> Any:
     prev = t.prev
     if prev is None or group not in prev.raw:
         return None
-    _, state = group.finish(np.array([prev.now_us], dtype=np.int64),
+    _, state = group.finish(np.array([prev.now_us], dtype=np.int64),  # type: ignore[misc]  # a batch group has finish
                             np.array([prev.raw[group]], dtype=np.float64), None)
     return state
 

@@ -357,14 +357,14 @@ class Recorder:
     def _alloc(self) -> None:
         rows, nb = self._rows, len(self._body_names)
         self._t = np.zeros(rows, dtype=np.int64)
-        self._t_items = memoryview(self._t)
+        self._t_items = memoryview(self._t)  # type: ignore[arg-type]  # numpy arrays are buffers
         self._k0 = 0          # the sample number of the buffer's first row (then one more a row)
         self._buf = np.zeros((rows, self._nbuf), dtype=np.float64)
-        self._buf_bytes = memoryview(self._buf).cast("B")        # the rows, packed in place
+        self._buf_bytes = memoryview(self._buf).cast("B")  # type: ignore[arg-type]  # the rows, packed in place (an array is a buffer)
         self._pos = np.zeros((rows, nb, 3), dtype=np.float64)
         self._quat = np.zeros((rows, nb, 4), dtype=np.float64)  # MuJoCo's order (w, x, y, z)
         # flat views of them, one row a slice
-        self._pose_dst = tuple(memoryview(a).cast("B").cast("d") for a in (self._pos, self._quat))
+        self._pose_dst = tuple(memoryview(a).cast("B").cast("d") for a in (self._pos, self._quat))  # type: ignore[arg-type]  # as above
         self._pose_len = (nb * 3, nb * 4)
         self._com: list[Sequence[float]] = [()] * rows      # each row's CoM (x y z)
         self._cop: list[Sequence[float] | None] = [None] * rows    # its CoP (x y), None airborne
@@ -381,7 +381,7 @@ class Recorder:
         for c in self.columns:
             key: tuple | None = (c.names, c.colors)
             try:
-                style = styles.get(key)
+                style = styles.get(key)  # type: ignore[arg-type]  # None is a key too
             except TypeError:       # a user's column given lists (unhashable): an archetype of its own
                 key = style = None
             if style is None:
@@ -557,7 +557,7 @@ class Recorder:
             if not len(range(n)[rows]):
                 continue
             raw = buf[rows, b0:b0 + group.raw_width]
-            out, state = group.finish(t[rows], raw, self._batch_state.get(group))
+            out, state = group.finish(t[rows], raw, self._batch_state.get(group))  # type: ignore[misc]  # a batch group has finish
             vals[f0:f0 + group.width, rows] = out.T
             self._batch_state[group] = state
         return vals
@@ -710,7 +710,7 @@ class Recorder:
 
         w1 = time.perf_counter()
         try:
-            self.size_before_compaction, _ = compact_rrd(self.path, should_stop=stop)
+            self.size_before_compaction, _ = compact_rrd(self.path, should_stop=stop)  # type: ignore[arg-type]  # a file recording
         except (RrdReadError, OSError) as exc:
             self.compaction_error = " ".join(str(exc).split())[:300]
         self.compact_s = time.perf_counter() - w1

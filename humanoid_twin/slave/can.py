@@ -203,9 +203,9 @@ class SlaveCan:
         f = self._rx_fields
         try:
             if index == 0:
-                unpack_actuation1_into(data, f)
+                unpack_actuation1_into(data, f)  # type: ignore[arg-type]  # the frame's bytes (a bytearray is read alike)
             else:
-                unpack_actuation2_into(data, f)
+                unpack_actuation2_into(data, f)  # type: ignore[arg-type]  # as above
         except PayloadError:
             self.rx_errors += 1
             return False

@@ -294,13 +294,13 @@ class Progress:
 
 def _local(task: Task, points: list[Point], jobs: int) -> Iterable[dict[str, Any]]:
     """One process per run, ``jobs`` at a time; a worker that dies is its run's error."""
-    from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+    from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
     from concurrent.futures.process import BrokenProcessPool
 
     todo = list(reversed(points))
     while todo:
         with ProcessPoolExecutor(max_workers=jobs) as pool:
-            running = {}
+            running: dict[Future[dict[str, Any]], Point] = {}
             broken = False
             while (todo or running) and not broken:
                 while todo and len(running) < jobs:
@@ -440,7 +440,7 @@ def run_sweep(points: Sequence[Point], task: Task, out: Path, *, jobs: int | Non
                 runs = _local(task, todo, jobs)
             index = {p.key(): p.index for p in todo}
             for row in runs:
-                new[index[row_key(row, names)]] = row
+                new[index[row_key(row, names)]] = row  # type: ignore[index]  # a row's key
                 flush()
                 bar.update(row)
         elif not out.exists():
