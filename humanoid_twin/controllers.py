@@ -20,13 +20,16 @@ import importlib
 import inspect
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from humanoid_twin import host as _host
 from humanoid_twin.containment import attribute_path, describe, user_fault
 from humanoid_twin.host.timebase import now as host_now
 from humanoid_twin.host.timebase import sleep as host_sleep
 from humanoid_twin.monitor import Monitor
+
+if TYPE_CHECKING:
+    from humanoid_twin.interfaces import HostPort
 
 __all__ = [
     "DEFAULT_HOST_PERIOD_MS",
@@ -69,7 +72,7 @@ class HostToolbox:
     """The host toolbox (``humanoid_twin.host``) with the port bound: ``tb.readspecial(1)`` is
     ``readspecial(H, 1)``. Functions without a port (``calccop``, the planners) are as they are."""
 
-    def __init__(self, H: Any) -> None:
+    def __init__(self, H: HostPort) -> None:
         self.H = H
 
     def __getattr__(self, name: str) -> Any:
@@ -93,7 +96,7 @@ class HostContext:
     so far (0 at the first); ``state``: a dict kept between calls; :attr:`t` the host's clock (s).
     """
 
-    H: Any
+    H: HostPort
     host: HostToolbox
     monitor: Monitor
     period_s: float
@@ -134,7 +137,7 @@ def load_host_controller(ref: str | HostStep) -> HostStep:
     return obj
 
 
-def run_host_controller(H: Any, step: HostStep, monitor: Monitor, until_s: float,
+def run_host_controller(H: HostPort, step: HostStep, monitor: Monitor, until_s: float,
                         period_ms: float = DEFAULT_HOST_PERIOD_MS,
                         should_stop: Callable[[], bool] | None = None) -> HostContext:
     """Call ``step(ctx)`` every ``period_ms`` of the host's time until ``until_s`` (a call that

@@ -73,6 +73,7 @@ from humanoid_twin.summary import (
 )
 
 if TYPE_CHECKING:
+    from humanoid_twin.interfaces import HostPort
     from humanoid_twin.twin import Twin
 
 CONTROL_CHOICES: dict[str, int] = {t.label: t for t in ControlType}   # run --control
@@ -124,7 +125,7 @@ MAX_DURATION_S = 86_400.0
 BOUND_REPEAT_US = 0
 
 
-def hold(H: Any, plan: Plan, scus: tuple[int, ...] = LEG_SCUS) -> None:
+def hold(H: HostPort, plan: Plan, scus: tuple[int, ...] = LEG_SCUS) -> None:
     """A scenario without motions: send the gains and control types of the plan's first motion
     to the boards ``scus`` (``applycontrol``) and let the firmware hold the posture."""
     for scu in scus:

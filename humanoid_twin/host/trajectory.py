@@ -12,7 +12,7 @@ zero velocity at both ends, ``theta(tau) = pos0 + (posF - pos0) (3 tau^2 - 2 tau
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -23,6 +23,9 @@ from humanoid_twin.host.motion import apply_joint, period_ticks, send_gains
 from humanoid_twin.host.planners import TICK_S, control_row
 from humanoid_twin.protocol.rs232 import PARAM_CURRENT, PARAM_POSITION, PARAM_VELOCITY
 from humanoid_twin.protocol.wire import ControlType, check_scu, int_in_range
+
+if TYPE_CHECKING:
+    from humanoid_twin.interfaces import HostPort
 
 __all__ = [
     "TEST_SCU",
@@ -97,7 +100,7 @@ def _three(name: str, v: Any) -> np.ndarray:
 
 
 def sample_traj3(
-    H: Any,
+    H: HostPort,
     T: float,
     pos0: Any,
     posF: Any,
@@ -167,7 +170,7 @@ def sample_traj3(
 
 
 def sample_traj(
-    H: Any,
+    H: HostPort,
     T: float,
     pos0: float,
     posF: float,
