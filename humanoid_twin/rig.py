@@ -32,7 +32,7 @@ from __future__ import annotations
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from humanoid_twin.board_report import BoardReport
 from humanoid_twin.controllers import law_reference
@@ -45,6 +45,11 @@ from humanoid_twin.master.supervisor import ESTOP, READY, SAFE, SupervisorConfig
 from humanoid_twin.monitor import CONTROLLERS_START_S, Monitor
 from humanoid_twin.slave.laws import install_laws
 from humanoid_twin.twin import Twin
+
+if TYPE_CHECKING:
+    from humanoid_twin.bus.serial_log import SerialLog
+    from humanoid_twin.recording.can_log import CanLog
+    from humanoid_twin.recording.rerun_recorder import Recorder
 
 __all__ = ["Rig", "RigOptions", "ScenarioError", "BootError", "boot", "tilt_profile", "BOOT_TIMEOUT_S",
            "TILT_RATE_DEG_S", "PROGRESS_PERIOD_US"]
@@ -208,9 +213,9 @@ class Rig:
                  on_progress: Callable[[float, float | None], None] | None = None) -> None:
         opts = opts if opts is not None else RigOptions()
         self.opts = opts
-        self.recorder: Any = None
-        self.canlog: Any = None
-        self.seriallog: Any = None
+        self.recorder: Recorder | None = None
+        self.canlog: CanLog | None = None
+        self.seriallog: SerialLog | None = None
         self.H: Any = None
         self.boot_s: float | None = None
         self.boot_error: str | None = None

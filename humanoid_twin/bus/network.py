@@ -322,7 +322,7 @@ class CanNetwork(ForeignPath):
 
     # -- setup -------------------------------------------------------------------------------
     def attach(self, name: str, can_filters: can.typechecking.CanFilters | None,
-               on_rx: Callable[[Frame], None], rx_ids: Collection[int] | None = None) -> CanController:
+               on_rx: Callable[[Frame], None] | None, rx_ids: Collection[int] | None = None) -> CanController:
         """Connect a node: its acceptance filters (slide 23) and its RX interrupt ``on_rx``, called
         with each frame as a :class:`~humanoid_twin.bus.frames.Frame` (python-can's attribute
         names; on every interface, and for frames a tool sent as a ``can.Message``).

@@ -27,7 +27,7 @@ import math
 import time
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -37,6 +37,9 @@ from humanoid_twin.compare.signals import GROUP_UNITS, GROUPS, QUANTUM, SIGNALS,
 from humanoid_twin.master.pic import ROUND_US, SLAVE_PERIOD_US, TIMER_PERIOD_US
 from humanoid_twin.protocol import canframes
 from humanoid_twin.protocol.wire import STATUS_CALIB
+
+if TYPE_CHECKING:
+    from humanoid_twin.twin import Twin
 
 __all__ = ["CompareOptions", "CompareResult", "LogPlayer", "SUPPORTS", "compare_frames", "run_twin",
            "compare_log", "key_frames"]
@@ -151,7 +154,7 @@ class LogPlayer:
 
     NODE = "log-player"
 
-    def __init__(self, twin: Any, log: RobotLog, preroll: list[LogFrame] | None = None) -> None:
+    def __init__(self, twin: Twin, log: RobotLog, preroll: list[LogFrame] | None = None) -> None:
         self.clock = twin.clock
         self.ctrl = twin.network.attach(self.NODE, canframes.master_filters(), None)
         self.frames = list(preroll or ()) + log.master
@@ -237,7 +240,7 @@ def _merged(log: RobotLog) -> list[LogFrame]:
     return sorted(log.master + log.sensors, key=lambda f: f.t_us)
 
 
-def _hold_support(twin: Any, support: str) -> None:
+def _hold_support(twin: Twin, support: str) -> None:
     if support == "stand":
         twin.plant.hold_trunk()
 

@@ -16,6 +16,8 @@ from humanoid_twin.protocol.canframes import PIC_RX_BUFFERS, PIC_TX_BUFFERS, pac
 if TYPE_CHECKING:
     from collections.abc import Callable
 
+    from can.typechecking import CanFilters
+
     from humanoid_twin.bus.frames import Frame
     from humanoid_twin.bus.network import CanController, CanNetwork
 
@@ -35,7 +37,7 @@ class CanDrivers:
         self.txb: list[Frame | None] = [None] * PIC_TX_BUFFERS  # last message requested per TXBn
         self.rx_overflows = 0
 
-    def myCANInitialize(self, can_filters: list[dict], on_rx: Callable[[Frame], None]) -> CanController:
+    def myCANInitialize(self, can_filters: CanFilters, on_rx: Callable[[Frame], None]) -> CanController:
         """``myCANInitialize`` (table 5): configuration mode, bit timing, masks/filters, normal mode.
 
         In the twin: attach the node to the network with ``can_filters`` (slide 23) and ``on_rx``

@@ -23,7 +23,7 @@ import sys
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from importlib import resources
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import mujoco
 import numpy as np
@@ -37,6 +37,9 @@ from humanoid_twin.plant.imu import TrunkImu
 from humanoid_twin.plant.sensors import BoardIO, PlantError, PlantInputError, SensorFrontEnd, _check_scu  # noqa: F401 (re-exported)
 from humanoid_twin.plant.truth import FOOT_BODIES, GroundTruth, TruthProbe
 from humanoid_twin.protocol.wire import N_SCU, POS_LIMIT_DEG
+
+if TYPE_CHECKING:
+    from humanoid_twin.clock import Clock
 
 # The model ships inside the package (MuJoCo Menagerie / dm_control style) and is read with
 # importlib.resources, so `pip install .` (a wheel), `pip install -e .` and a source tree all load
@@ -135,7 +138,7 @@ class Plant(BoardIO):
     non-default ones.
     """
 
-    def __init__(self, model_path: str | Path | None = None, *, seed: int = 0, clock: Any = None,
+    def __init__(self, model_path: str | Path | None = None, *, seed: int = 0, clock: Clock | None = None,
                  params: Mapping[str, float] | None = None) -> None:
         _route_mujoco_warnings()
         given = Path(model_path) if model_path is not None else None
@@ -164,7 +167,7 @@ class Plant(BoardIO):
         if self.timestep_us <= 0 or abs(ts_us - self.timestep_us) > 1e-6:
             raise PlantError(f"{path}: timestep {m.opt.timestep} s is not a whole number of microseconds")
         self.t_us: int = 0
-        self._clock: Any = clock
+        self._clock: Clock | None = clock
         self.step_ns_total = 0      # wall time spent in mj_step (boards subtract it from their task time)
 
         def need(kind: mujoco.mjtObj, name: str) -> int:
@@ -289,7 +292,7 @@ class Plant(BoardIO):
             self._imu.reset()
         mujoco.mj_forward(m, self.data)
 
-    def bind_clock(self, clock: Any) -> None:
+    def bind_clock(self, clock: Clock | None) -> None:
         """Put physics time under ``clock`` (anything with ``now_us``): from now on every read or
         write of the plant first runs the physics due up to ``clock.now_us``, in this one place.
 

@@ -84,7 +84,7 @@ def _joint_grid(scus: Sequence[int], name: str) -> rrb.Vertical:
     return rrb.Vertical(key, rrb.Grid(*views, grid_columns=2), row_shares=[1, 6 * rows], name=name)
 
 
-def log_keys(rec: Any) -> None:
+def log_keys(rec: rr.RecordingStream) -> None:
     """The static texts the blueprint shows (the joint tabs' colour key), into recording ``rec``."""
     rec.log(JOINT_KEY, rr.TextDocument(JOINT_KEY_TEXT, media_type=rr.MediaType.MARKDOWN), static=True)
 
@@ -105,7 +105,7 @@ def params_markdown(params: Mapping[str, float]) -> str:
     return "\n".join(lines) + "\n"
 
 
-def log_params(rec: Any, params: Mapping[str, float]) -> None:
+def log_params(rec: rr.RecordingStream, params: Mapping[str, float]) -> None:
     """The run's non-default parameters into recording ``rec``: a recording property ``params``
     (name -> value; rerun's recording properties) and the Parameters tab's static text."""
     from humanoid_twin.params import params_digest

@@ -33,6 +33,8 @@ from humanoid_twin.protocol import canframes
 if TYPE_CHECKING:
     import cantools.database
 
+    from humanoid_twin.bus.network import CanNetwork
+
 __all__ = [
     "CanLog",
     "CanLogError",
@@ -139,7 +141,7 @@ class CanLog:
     twin's clock started).
     """
 
-    def __init__(self, path: str | pathlib.Path, network: Any, name: str | None = None,
+    def __init__(self, path: str | pathlib.Path, network: CanNetwork, name: str | None = None,
                  params: Mapping[str, float] | None = None) -> None:
         self.path = pathlib.Path(path)
         suffix = check_log_path(self.path)

@@ -37,7 +37,7 @@ import time
 import uuid
 from collections.abc import Iterable, Sequence
 from itertools import chain
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pyarrow as pa
@@ -68,6 +68,10 @@ from humanoid_twin.recording.columns import (
 )
 from humanoid_twin.recording.geometry import log_static
 from humanoid_twin.recording.paths import BODIES, SUPERVISOR, WORLD, foot_view_path, scu_path
+
+if TYPE_CHECKING:
+    from humanoid_twin.plant.truth import GroundTruth
+    from humanoid_twin.twin import Twin
 
 __all__ = ["Recorder", "RecorderError", "TIMELINE", "Column", "compact_for", "SHORT_RECORDING_S"]
 
@@ -147,7 +151,7 @@ class Recorder:
     def __init__(
         self,
         path: str | pathlib.Path | None,
-        twin: Any,
+        twin: Twin,
         period_us: int = PWM_PERIOD_US,
         app_id: str = "humanoid_twin",
         *,
@@ -316,7 +320,7 @@ class Recorder:
         self._poses = plant.body_pose_views()
         if not all(v.dtype == np.float64 and v.flags.c_contiguous for v in self._poses):
             raise RecorderError("the plant's body pose views are not contiguous float64: cannot record them")
-        self._pose_src = tuple(memoryview(v).cast("B").cast("d") for v in self._poses)
+        self._pose_src = tuple(memoryview(v).cast("B").cast("d") for v in self._poses)  # type: ignore[arg-type]  # an array is a buffer
         self._platform = self._body_names.index("platform") if "platform" in self._body_names else None
         self._tick: Tick | None = None
 
@@ -432,7 +436,7 @@ class Recorder:
         pos, quat = self._pose_dst
         npos, nquat = self._pose_len
         pos[i * npos:(i + 1) * npos], quat[i * nquat:(i + 1) * nquat] = self._pose_src
-        self._com[i] = truth.com
+        self._com[i] = truth.com  # type: ignore[call-overload]  # an array of 3
         plain = truth.plain()
         self._cop[i] = plain.cop_world_xy
         self._poly[i] = plain.support_polygon_xy
@@ -456,7 +460,7 @@ class Recorder:
         rec.log(f"{SUPERVISOR}/events", rr.TextLog(str(text), level=level))
         rec.reset_time()
 
-    def _log_fell(self, t_us: int, truth: Any) -> None:
+    def _log_fell(self, t_us: int, truth: GroundTruth) -> None:
         """The robot's fall as an event (once a recording): when, and how it lies."""
         self._fell_logged = True
         tilt, height_mm = truth.trunk_tilt_deg, truth.trunk_height_m * 1000
@@ -465,7 +469,7 @@ class Recorder:
     def _on_supervisor(self, kind: str, t_us: int, value: Any) -> None:
         """The Master supervisor's listener: every mode change and fault as an event."""
         if kind == "mode":
-            sup = self.twin.master.supervisor
+            sup = self.twin.master.supervisor  # type: ignore[union-attr]  # a recorded twin has its Master
             self.log_event(t_us, f"mode -> {sup.mode_name}", "WARN" if sup.mode_name in ("safe", "estop")
                            else "INFO")
         elif kind == "fault":
@@ -747,7 +751,7 @@ class Recorder:
         return f"Recorder({str(self.path)!r}, {state}, samples={self.samples}, chunks={self.chunks_sent})"
 
 
-def _supervisor_columns(twin: Any) -> list[Column]:
+def _supervisor_columns(twin: Twin) -> list[Column]:
     """``supervisor/mode``: the Master supervisor's mode number and faults latched (when the
     twin's Master has a supervisor, docs/supervisor.md)."""
     sup = getattr(twin.master, "supervisor", None)

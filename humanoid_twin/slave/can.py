@@ -44,7 +44,10 @@ from humanoid_twin.protocol.wire import STATUS_DEADLINE, ErrorState, node_name
 from humanoid_twin.slave.database import Global
 
 if TYPE_CHECKING:
+    from collections.abc import Callable
+
     from humanoid_twin.bus.frames import Frame
+    from humanoid_twin.bus.network import CanNetwork
     from humanoid_twin.clock import Clock
 
 __all__ = ["ISR_LATENCY_US", "SlaveCan"]
@@ -128,13 +131,13 @@ class SlaveCan:
         self.watchdog = False
         self.law_stopped = False      # a control law was stopped (Sensors 2 SFlags bit 2)
         self.bus_off_seen = False
-        self.on_stop: Any = None
+        self.on_stop: Callable[[], None] | None = None
         # cycles the receive interrupt took since the main loop last asked (take_isr_cycles)
         self.isr_cycles = 0
         self._skipped_seen = 0
         self.prepareSensorPackets()
 
-    def initCan(self, network: Any) -> None:
+    def initCan(self, network: CanNetwork) -> None:
         """``initCan`` (table 18): the CAN peripheral on the network, slide 23 mask/filters,
         receive interrupt = :meth:`lowISR`. The frames that interrupt acts on, this board's two
         actuation identifiers, are named to the network (``rx_ids``): every other frame the mask
