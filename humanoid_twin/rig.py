@@ -48,6 +48,7 @@ from humanoid_twin.twin import Twin
 
 if TYPE_CHECKING:
     from humanoid_twin.bus.serial_log import SerialLog
+    from humanoid_twin.interfaces import HostPort
     from humanoid_twin.recording.can_log import CanLog
     from humanoid_twin.recording.rerun_recorder import Recorder
 
@@ -160,7 +161,7 @@ class ScenarioError(RuntimeError):
 class BootError(ScenarioError):
     """:func:`boot` failed; ``port`` is the host end of the link, open (the run may go on)."""
 
-    def __init__(self, message: str, port: Any) -> None:
+    def __init__(self, message: str, port: HostPort) -> None:
         super().__init__(message)
         self.port = port
 
@@ -216,7 +217,7 @@ class Rig:
         self.recorder: Recorder | None = None
         self.canlog: CanLog | None = None
         self.seriallog: SerialLog | None = None
-        self.H: Any = None
+        self.H: HostPort = None  # type: ignore[assignment]  # the host end, from boot on
         self.boot_s: float | None = None
         self.boot_error: str | None = None
         self.host_error: str | None = None

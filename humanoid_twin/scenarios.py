@@ -73,7 +73,10 @@ from humanoid_twin.summary import (
 )
 
 if TYPE_CHECKING:
+    from types import FrameType
+
     from humanoid_twin.interfaces import HostPort
+    from humanoid_twin.outputs import Outputs
     from humanoid_twin.twin import Twin
 
 CONTROL_CHOICES: dict[str, int] = {t.label: t for t in ControlType}   # run --control
@@ -619,7 +622,7 @@ def arm_wall_timeout(seconds: float | None) -> None:
 
     fired = [0]
 
-    def on_alarm(signum: int, frame: Any) -> None:
+    def on_alarm(signum: int, frame: FrameType | None) -> None:
         if signals.deferring():          # a file's last write and rename: not cut in the middle
             return
         # raised again every 0.5 s while user code swallows it; after 5 s of that, the process
@@ -791,7 +794,7 @@ class Session:
         self.expected_s = (opts.duration if opts.duration is not None
                            else BOOT_TIMEOUT_S + _after_boot_s(self.motion_s, opts.tilt))
         self.summary: dict[str, Any] | None = None
-        self.outputs: Any = None            # the files' temporary names (open_run), else None
+        self.outputs: Outputs | None = None            # the files' temporary names (open_run), else None
         self._driven = False
         self._completed = True              # false once the run's end cut the boot or the program
         self._stopped = False               # the run's end or a divergence ended it: nothing more runs

@@ -157,8 +157,8 @@ class Frame:
     is_error_frame = False
     is_fd = False
 
-    def __init__(self, arbitration_id: int, data: bytes | bytearray = b"", timestamp: float = 0.0,
-                 channel: can.typechecking.Channel | None = None, is_rx: bool = False) -> None:
+    def __init__(self, arbitration_id: int, data: bytes = b"", timestamp: float = 0.0,
+                 channel: object = None, is_rx: bool = False) -> None:
         self.arbitration_id = arbitration_id
         self.data = bytes(data)
         self.dlc = len(self.data)
@@ -174,7 +174,7 @@ class Frame:
     def to_message(self) -> can.Message:
         """The frame as a new :class:`can.Message` (standard id, ``data`` a bytes copy)."""
         return can.Message(timestamp=self.timestamp, arbitration_id=self.arbitration_id,
-                           is_extended_id=False, channel=self.channel, dlc=self.dlc,
+                           is_extended_id=False, channel=self.channel, dlc=self.dlc,  # type: ignore[arg-type]  # a channel name
                            data=self.data, is_rx=self.is_rx)
 
 

@@ -480,7 +480,7 @@ class CanNetwork(ForeignPath):
         else:
             bits = self._checked_bits(ctrl, msg)
             # the wire carries frames of its own: a python-can message is copied into one
-            frame = msg if type(msg) is Frame else Frame(msg.arbitration_id, msg.data)
+            frame = msg if type(msg) is Frame else Frame(msg.arbitration_id, msg.data)  # type: ignore[arg-type]  # Frame copies it with bytes()
         arb = frame.arbitration_id
         self._seq = seq = self._seq + 1
         clock = self.clock

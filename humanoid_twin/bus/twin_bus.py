@@ -124,7 +124,7 @@ def _copy(msg: Frame | can.Message) -> can.Message:
         return msg.to_message()
     return can.Message(timestamp=msg.timestamp, arbitration_id=msg.arbitration_id,
                        is_extended_id=msg.is_extended_id, is_remote_frame=msg.is_remote_frame,
-                       is_error_frame=msg.is_error_frame, channel=msg.channel, dlc=msg.dlc,
+                       is_error_frame=msg.is_error_frame, channel=msg.channel, dlc=msg.dlc,  # type: ignore[arg-type]  # a channel name
                        data=bytearray(msg.data), is_fd=msg.is_fd, is_rx=msg.is_rx,
                        bitrate_switch=msg.bitrate_switch,  # type: ignore[union-attr]  # a Message here
                        error_state_indicator=msg.error_state_indicator)  # type: ignore[union-attr]

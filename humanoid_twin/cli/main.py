@@ -28,7 +28,7 @@ import shutil
 import signal
 import sys
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from humanoid_twin.cli.argtypes import (
     degrees_90,
@@ -56,6 +56,11 @@ from humanoid_twin.outputs import (  # noqa: F401 - temp_name, remove_stale_part
     remove_stale_partials,
     temp_name,
 )
+
+if TYPE_CHECKING:
+    from typing import TextIO
+
+    from humanoid_twin.scenarios import RunOptions
 
 EXIT_SUPERVISOR = 3     # the run ended with the supervisor in safe or estop (docs/supervisor.md)
 
@@ -425,7 +430,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
         outputs.discard()       # whatever was not committed
 
 
-def _run(args: argparse.Namespace, opts: Any, outputs: _Outputs) -> int:
+def _run(args: argparse.Namespace, opts: RunOptions, outputs: _Outputs) -> int:
     from humanoid_twin import signals
     from humanoid_twin.recording.readback import RrdReadError
     from humanoid_twin.scenarios import ScenarioError, ScenarioInputError, disarm_wall_timeout, run
@@ -523,7 +528,7 @@ def summary_table(summary: dict) -> str:
     return "".join(f"{key:<{width}}  {plain_value(value)}\n" for key, value in summary.items())
 
 
-def _print_summary(summary: dict, as_json: bool, out: Any) -> None:
+def _print_summary(summary: dict, as_json: bool, out: TextIO | None) -> None:
     """``--json``: the JSON object alone on stdout (for machines); otherwise the human table.
     ``out``: the command's stdout (cli/streams.py; None: the process has none)."""
     if out is None:
@@ -593,7 +598,7 @@ def cmd_serve(args: argparse.Namespace) -> int:
     return 128 + stop["signal"] if stop["signal"] is not None else code
 
 
-def _say(out: Any, line: str) -> None:
+def _say(out: TextIO | None, line: str) -> None:
     """One line on the command's stdout (cli/streams.py; None: the process has none)."""
     if out is not None:
         out.write(line + "\n")

@@ -27,7 +27,7 @@ from humanoid_twin.sweep.table import SweepError, read_table, table_format
 NOT_PARAMS = {"command", "scenario", "out", "no_record", "can_log", "serial_log", "json", "no_progress"}
 
 
-def add_sweep_parser(sub: Any) -> argparse.ArgumentParser:
+def add_sweep_parser(sub: argparse._SubParsersAction[Any]) -> argparse.ArgumentParser:
     """The ``sweep`` subcommand (``sub``: the CLI's subparsers). Options it does not know are
     ``run``'s, given to every run."""
     p = sub.add_parser(

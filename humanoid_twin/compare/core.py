@@ -39,6 +39,8 @@ from humanoid_twin.protocol import canframes
 from humanoid_twin.protocol.wire import STATUS_CALIB
 
 if TYPE_CHECKING:
+    import can
+
     from humanoid_twin.twin import Twin
 
 __all__ = ["CompareOptions", "CompareResult", "LogPlayer", "SUPPORTS", "compare_frames", "run_twin",
@@ -186,7 +188,7 @@ class _Collector:
     def __init__(self) -> None:
         self.frames: list[LogFrame] = []
 
-    def on_message_received(self, msg: Any) -> None:
+    def on_message_received(self, msg: can.Message) -> None:
         arb = msg.arbitration_id
         if arb in SENSORS_OF or arb in ACTUATION_OF:
             self.frames.append(LogFrame(round(msg.timestamp * US_PER_S), arb, bytes(msg.data)))

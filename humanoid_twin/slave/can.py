@@ -22,7 +22,7 @@ bytes, as the PIC did from its global database (slide 31).
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 from humanoid_twin.cycles import SLAVE
 from humanoid_twin.hardware import PWM_BUSY_US, PWM_PERIOD_US
@@ -47,7 +47,7 @@ if TYPE_CHECKING:
     from collections.abc import Callable
 
     from humanoid_twin.bus.frames import Frame
-    from humanoid_twin.bus.network import CanNetwork
+    from humanoid_twin.bus.network import CanController, CanNetwork
     from humanoid_twin.clock import Clock
 
 __all__ = ["ISR_LATENCY_US", "SlaveCan"]
@@ -101,7 +101,7 @@ class SlaveCan:
         self.clock = clock
         self.db = db
         self.phase_us = phase_us
-        self.controller: Any = None
+        self.controller: CanController = None  # type: ignore[assignment]  # set by initCan
         self.node_name = node_name(address)
         self._sensor_ids = SENSOR_IDS[address]
         # the two actuation identifiers addressed to this board -> packet index (the network's
