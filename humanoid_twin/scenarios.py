@@ -1043,7 +1043,7 @@ def run(opts: RunOptions, on_progress: Callable[[float, float | None], None] | N
             # made first, then built: a --wall-timeout during the boot still finds the rig's time
             session = Session.__new__(Session)
             session.rig = None
-            session.__init__(opts, on_progress, on_twin, on_boot)   # type: ignore[misc]
+            session.__init__(opts, on_progress, on_twin, on_boot)   # type: ignore[misc]  # made by __new__ above
             with session:
                 summary = session.finish()
         return summary
@@ -1096,7 +1096,7 @@ def _host_controller(rig: Rig, step: Callable[..., Any], duration: float, period
         ctx = run_host_controller(rig.H, step, rig.monitor, duration, period_ms, should_stop=rig.stopped)
         return ctx.calls
     except _HostBoundReachedError as exc:      # the run reached its duration: completed
-        return exc.host_context.calls          # type: ignore[attr-defined]
+        return exc.host_context.calls          # type: ignore[attr-defined]  # set on the exception (controllers.py)
     except drivers.CommError as exc:
         if not rig.tolerates():
             raise ScenarioError(f"host controller: {exc}") from exc

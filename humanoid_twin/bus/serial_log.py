@@ -24,7 +24,7 @@ import sys
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import IO, Any
+from typing import IO, Any, Protocol
 
 from humanoid_twin.bus.serial_link import TAP_FLUSH, TAP_TO_DEVICE, TAP_TO_HOST, TAP_UNPLUG, SerialLink
 from humanoid_twin.clock import US_PER_S, Clock
@@ -76,6 +76,18 @@ class SerialLogError(ValueError):
     """A file that is not a serial log (or a line that breaks its format)."""
 
 
+
+class _Cabled(Protocol):
+    """What :meth:`SerialLog.attach` reads of a :class:`~humanoid_twin.twin.Twin` (named by its
+    members: the buses import nothing built on them)."""
+
+    @property
+    def link(self) -> SerialLink: ...
+
+    @property
+    def seed(self) -> int: ...
+
+
 class SerialLog:
     """Writes every event of ``link`` to ``path`` (text, one line per event, flushed per line).
 
@@ -102,7 +114,7 @@ class SerialLog:
         link.add_tap(self._on_event)
 
     @classmethod
-    def attach(cls, twin: Any, path: str | Path) -> SerialLog:
+    def attach(cls, twin: _Cabled, path: str | Path) -> SerialLog:
         """Log the RS-232 cable of ``twin`` (a :class:`~humanoid_twin.twin.Twin`) into ``path``; the
         header records the twin's seed, as a default rig's does (a twin with faults or laws: log
         it through :class:`~humanoid_twin.rig.Rig`, whose options the header then records)."""

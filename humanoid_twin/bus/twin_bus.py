@@ -127,7 +127,7 @@ def _copy(msg: Frame | can.Message) -> can.Message:
                        is_error_frame=msg.is_error_frame, channel=msg.channel, dlc=msg.dlc,  # type: ignore[arg-type]  # a channel name
                        data=bytearray(msg.data), is_fd=msg.is_fd, is_rx=msg.is_rx,
                        bitrate_switch=msg.bitrate_switch,  # type: ignore[union-attr]  # a Message here
-                       error_state_indicator=msg.error_state_indicator)  # type: ignore[union-attr]
+                       error_state_indicator=msg.error_state_indicator)  # type: ignore[union-attr]  # as above
 
 
 class RxPort:

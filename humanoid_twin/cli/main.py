@@ -71,7 +71,7 @@ class _Parser(argparse.ArgumentParser):
 
     run_parser: argparse.ArgumentParser | None = None
 
-    def error(self, message: str) -> None:  # type: ignore[override]
+    def error(self, message: str) -> None:  # type: ignore[override]  # raises: exit 2
         raise _usage_error(message)
 
 
@@ -320,7 +320,7 @@ class _Outputs(Outputs):
         files["can_log_name"] = None if args.can_log is None else args.can_log.name
         return files
 
-    def add(self, key: str, path: Path, what: str) -> Path:  # type: ignore[override]
+    def add(self, key: str, path: Path, what: str) -> Path:  # type: ignore[override]  # what: names it in the message
         """As :meth:`Outputs.add`, checked first as the CLI checks an output (one line, exit 2)."""
         _check_writable(path.expanduser(), what)
         try:

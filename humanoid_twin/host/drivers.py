@@ -648,11 +648,11 @@ def raise_for_error(result: tuple[Any, ...], what: str = "request", H: HostPort 
     With the port ``H``, an APPLY answered FC is checked against the Master's supervisor: when
     it is in ``safe`` or ``estop`` the error is a :class:`SupervisorRefused` naming the mode and
     the fault."""
-    err = result.error  # type: ignore[attr-defined]
+    err = result.error  # type: ignore[attr-defined]  # a driver's NamedTuple result
     if err == ErrorCode.OK:
         return
     code = ErrorCode(err)
-    rx = result.rx  # type: ignore[attr-defined]
+    rx = result.rx  # type: ignore[attr-defined]  # as above
     opcode = parse_opcode(rx[1]) if len(rx) == 6 else (-1, -1, -1)
     is_apply = 0 <= opcode[0] <= Op.APPLY_CONTROL
     # a reset the supervisor refused (a board not answering: the latch holds, docs/supervisor.md)
@@ -665,9 +665,9 @@ def raise_for_error(result: tuple[Any, ...], what: str = "request", H: HostPort 
                     if is_reset else "readsupervisor; reset to recover")
             raise SupervisorRefused(
                 f"{what}: refused by the Master's supervisor: mode {sup.mode_name}{fault} "
-                f"({hint})", code, rx, result.tries,  # type: ignore[attr-defined]
+                f"({hint})", code, rx, result.tries,  # type: ignore[attr-defined]  # as above
                 sup.mode, sup.fault or 0, sup.node or 0)  # type: ignore[arg-type]  # the state byte of an answered request
-    raise _EXC[code](f"{what}: {result.errorstr}", code, result.rx, result.tries)  # type: ignore[attr-defined]
+    raise _EXC[code](f"{what}: {result.errorstr}", code, result.rx, result.tries)  # type: ignore[attr-defined]  # as above
 
 
 # ------------------------------------------------------------------------------------------

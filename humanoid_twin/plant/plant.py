@@ -212,7 +212,7 @@ class Plant(BoardIO):
                 self._pad_of_geom[g] = (f, p)  # type: ignore[assignment]  # as above
                 s = need(mujoco.mjtObj.mjOBJ_SENSOR, f"{foot}_{suffix}_touch")
                 adrs.append(int(m.sensor_adr[s]))
-            self._touch_adr[foot] = tuple(adrs)  # type: ignore[assignment]
+            self._touch_adr[foot] = tuple(adrs)  # type: ignore[assignment]  # 4 pads
         self._sole_sites = [self._sole_site[foot] for foot in FOOT_BODIES]
         self._foot_touch_of_scu = {scu: self._touch_adr[foot] for scu, foot in hardware.FOOT_OF_SCU.items()}
         hinges = [j for j in range(m.njnt) if m.jnt_type[j] == mujoco.mjtJoint.mjJNT_HINGE]
@@ -238,13 +238,13 @@ class Plant(BoardIO):
         offsets = np.random.default_rng(s_hw).uniform(-C.POT_OFFSET_RANGE_DEG, C.POT_OFFSET_RANGE_DEG,
                                                       size=(N_SCU, hardware.N_SERVOS))
         self.pot_b_true_deg: dict[int, tuple[float, float, float]] = {
-            scu: tuple(hardware.POT_B_NOMINAL_DEG + float(o) for o in offsets[scu - 1])  # type: ignore[misc]
+            scu: tuple(hardware.POT_B_NOMINAL_DEG + float(o) for o in offsets[scu - 1])  # type: ignore[misc]  # 3 servos
             for scu in hardware.SERVO_JOINTS
         }
         pot_offsets = by_kind.get("pot.offset_deg", {})     # pot.JOINT.offset_deg: added to the draw
         if pot_offsets:
             for scu, joints in hardware.SERVO_JOINTS.items():
-                self.pot_b_true_deg[scu] = tuple(  # type: ignore[assignment]
+                self.pot_b_true_deg[scu] = tuple(  # type: ignore[assignment]  # 3 servos
                     b + pot_offsets.get(j, 0.0)
                     for b, j in zip(self.pot_b_true_deg[scu], joints, strict=True))
         gains, zeros = by_kind.get("fsr.gain", {}), by_kind.get("fsr.offset_counts", {})
@@ -390,7 +390,7 @@ class Plant(BoardIO):
         ctrl = self.data.ctrl
         powered = self._powered
         stuck = self._stuck_actuators
-        for (_, _, a, sign, _, _), p in zip(rows, pulses_us, strict=True):  # type: ignore[arg-type]
+        for (_, _, a, sign, _, _), p in zip(rows, pulses_us, strict=True):  # type: ignore[arg-type]  # the servo table's rows
             if stuck and a in stuck:
                 continue
             if p is None:
