@@ -11,9 +11,12 @@ Like the monitor it only reads: a run with and without it is the same run.
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from humanoid_twin.hardware import IMU_SCU, PWM_PERIOD_US, imu_from_counts, tilt_from_roll_pitch
+
+if TYPE_CHECKING:
+    from humanoid_twin.twin import Twin
 
 __all__ = ["BoardReport"]
 
@@ -22,7 +25,7 @@ class BoardReport:
     """``BoardReport(twin, imu=True)``: attaches the IMU comparison (``imu``: off, the key is
     None, as the monitor's are, for scripts/bench.py); :meth:`summary` gives the three keys."""
 
-    def __init__(self, twin: Any, imu: bool = True) -> None:
+    def __init__(self, twin: Twin, imu: bool = True) -> None:
         self.twin = twin
         self._err_sq = 0.0
         self._n = 0
@@ -55,7 +58,7 @@ class BoardReport:
         ``deadlineError`` (late or overrun), the Master's slots that overran."""
         twin = self.twin
         slaves = twin.slaves
-        pic = twin.master.pic
+        pic = twin.master.pic  # type: ignore[union-attr]  # a board report's twin has its Master
         misses = {"master": pic.slot_overruns}
         for scu, s in slaves.items():
             misses[str(scu)] = s.deadline_violations

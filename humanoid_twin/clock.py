@@ -248,14 +248,14 @@ class Clock:
                         break
                     t, _, period, cb = _heappop(queue)
                 self.now_us = t
-                cb()
+                cb()  # type: ignore[misc]  # a pending event's callback (None only in free slots)
                 n += 1
                 if period:
                     if _COMPILED:
-                        self._push(t + period, period, cb)
+                        self._push(t + period, period, cb)  # type: ignore[arg-type]  # as above
                     else:               # _push, inlined (a Python call less per periodic event)
                         self._seq = seq = self._seq + 1
-                        _heappush(queue, (t + period, seq, period, cb))
+                        _heappush(queue, (t + period, seq, period, cb))  # type: ignore[misc]  # the interpreted heap's tuple
         finally:
             self._until = outer
         self.events_run += n

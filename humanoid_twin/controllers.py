@@ -25,7 +25,7 @@ import functools
 import inspect
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from humanoid_twin import host as _host
 from humanoid_twin import plugins
@@ -36,6 +36,9 @@ from humanoid_twin.host.timebase import sleep as host_sleep
 from humanoid_twin.monitor import Monitor
 from humanoid_twin.protocol.wire import ControlType
 from humanoid_twin.slave.laws import CONTROL_TYPES, POSITION, VELOCITY, LawFactory
+
+if TYPE_CHECKING:
+    from humanoid_twin.interfaces import HostPort
 
 __all__ = [
     "DEFAULT_HOST_PERIOD_MS",
@@ -87,7 +90,7 @@ class HostToolbox:
     """The host toolbox (``humanoid_twin.host``) with the port bound: ``tb.readspecial(1)`` is
     ``readspecial(H, 1)``. Functions without a port (``calccop``, the planners) are as they are."""
 
-    def __init__(self, H: Any) -> None:
+    def __init__(self, H: HostPort) -> None:
         self.H = H
 
     def __getattr__(self, name: str) -> Any:
@@ -111,7 +114,7 @@ class HostContext:
     so far (0 at the first); ``state``: a dict kept between calls; :attr:`t` the host's clock (s).
     """
 
-    H: Any
+    H: HostPort
     host: HostToolbox
     monitor: Monitor
     period_s: float

@@ -118,11 +118,11 @@ def _caller_stacklevel() -> int:
     while frame is not None:
         where = frame.f_code.co_filename
         if "importlib" in where and "_bootstrap" in where:
-            frame = frame.f_back        # warnings.warn skips these frames itself: not counted
+            frame = frame.f_back  # type: ignore[assignment]  # warnings.warn skips these frames itself: not counted (a caller's frame; the loop stops at None)
             continue
         if not where.startswith(pkg_dir):
             return level
-        frame, level = frame.f_back, level + 1
+        frame, level = frame.f_back, level + 1  # type: ignore[assignment]  # a caller's frame; the loop stops at None
     return 1
 
 

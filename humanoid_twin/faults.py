@@ -172,12 +172,12 @@ class FaultInjector:
         clock = self.twin.clock
         for spec in self.specs:
             t0 = max(round(spec.t0_s * US_PER_S), clock.now_us)
-            clock.schedule(t0, lambda s=spec: self._start(s))
+            clock.schedule(t0, lambda s=spec: self._start(s))  # type: ignore[misc]  # a default argument binds the spec
             lasts_us = KINDS[spec.kind].lasts_us
             if spec.t1_s is not None:
-                clock.schedule(round(spec.t1_s * US_PER_S), lambda s=spec: self._end(s))
+                clock.schedule(round(spec.t1_s * US_PER_S), lambda s=spec: self._end(s))  # type: ignore[misc]  # as above
             elif lasts_us is not None:
-                clock.schedule(t0 + lasts_us, lambda s=spec: self._end(s))
+                clock.schedule(t0 + lasts_us, lambda s=spec: self._end(s))  # type: ignore[misc]  # as above
         return self
 
     def _note(self, what: str, spec: FaultSpec) -> None:

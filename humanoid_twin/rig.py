@@ -32,7 +32,7 @@ from __future__ import annotations
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from humanoid_twin.board_report import BoardReport
 from humanoid_twin.controllers import install_laws, law_reference
@@ -44,6 +44,12 @@ from humanoid_twin.host.timebase import sleep as host_sleep
 from humanoid_twin.master.supervisor import ESTOP, READY, SAFE, SupervisorConfig
 from humanoid_twin.monitor import CONTROLLERS_START_S, Monitor
 from humanoid_twin.twin import Twin
+
+if TYPE_CHECKING:
+    from humanoid_twin.bus.serial_log import SerialLog
+    from humanoid_twin.interfaces import HostPort
+    from humanoid_twin.recording.can_log import CanLog
+    from humanoid_twin.recording.rerun_recorder import Recorder
 
 __all__ = ["Rig", "RigOptions", "ScenarioError", "BootError", "boot", "tilt_profile", "BOOT_TIMEOUT_S",
            "TILT_RATE_DEG_S", "PROGRESS_PERIOD_US"]
@@ -154,7 +160,7 @@ class ScenarioError(RuntimeError):
 class BootError(ScenarioError):
     """:func:`boot` failed; ``port`` is the host end of the link, open (the run may go on)."""
 
-    def __init__(self, message: str, port: Any) -> None:
+    def __init__(self, message: str, port: HostPort) -> None:
         super().__init__(message)
         self.port = port
 
@@ -207,10 +213,10 @@ class Rig:
                  on_progress: Callable[[float, float | None], None] | None = None) -> None:
         opts = opts if opts is not None else RigOptions()
         self.opts = opts
-        self.recorder: Any = None
-        self.canlog: Any = None
-        self.seriallog: Any = None
-        self.H: Any = None
+        self.recorder: Recorder | None = None
+        self.canlog: CanLog | None = None
+        self.seriallog: SerialLog | None = None
+        self.H: HostPort = None  # type: ignore[assignment]  # the host end, from boot on
         self.boot_s: float | None = None
         self.boot_error: str | None = None
         self.host_error: str | None = None
@@ -234,7 +240,8 @@ class Rig:
         if opts.out is not None or opts.live is not None:
             from humanoid_twin.recording import Recorder, compact_for
 
-            live = {} if opts.live is None else {"stream_to": opts.live, "chunk_s": LIVE_CHUNK_S}
+            live: dict[str, Any] = ({} if opts.live is None
+                                    else {"stream_to": opts.live, "chunk_s": LIVE_CHUNK_S})
             self.recorder = Recorder(opts.out, twin, compact=compact_for(expected_s), **live)
         if opts.can_log is not None:
             from humanoid_twin.recording import CanLog
@@ -264,7 +271,7 @@ class Rig:
 
     def stopped(self) -> bool:
         """The Master's supervisor is in ``safe`` or ``estop``."""
-        return self.twin.master.supervisor.mode in (SAFE, ESTOP)
+        return self.twin.master.supervisor.mode in (SAFE, ESTOP)  # type: ignore[union-attr]  # a rig's twin has its Master
 
     def tolerates(self) -> bool:
         """A failed host request is part of what the run shows (the summary's ``host_error``)
@@ -303,7 +310,7 @@ class Rig:
         client booted the robot: ``serve``)."""
         if not self.opts.tilt:
             return
-        sup = self.twin.master.supervisor
+        sup = self.twin.master.supervisor  # type: ignore[union-attr]  # as above
         started = [False]
 
         def on_mode(kind: str, t_us: int, value: Any) -> None:

@@ -71,6 +71,10 @@ from humanoid_twin.summary import (
 )
 
 if TYPE_CHECKING:
+    from types import FrameType
+
+    from humanoid_twin.interfaces import HostPort
+    from humanoid_twin.outputs import Outputs
     from humanoid_twin.twin import Twin
 
 CONTROL_CHOICES: dict[str, int] = {t.label: t for t in ControlType}   # run --control
@@ -123,7 +127,7 @@ MAX_DURATION_S = MAX_RUN_S
 BOUND_REPEAT_US = 0
 
 
-def hold(H: Any, plan: Plan, scus: tuple[int, ...] = LEG_SCUS) -> None:
+def hold(H: HostPort, plan: Plan, scus: tuple[int, ...] = LEG_SCUS) -> None:
     """A scenario without motions: send the gains and control types of the plan's first motion
     to the boards ``scus`` (``applycontrol``) and let the firmware hold the posture."""
     for scu in scus:
@@ -474,7 +478,7 @@ def arm_wall_timeout(seconds: float | None) -> None:
 
     fired = [0]
 
-    def on_alarm(signum: int, frame: Any) -> None:
+    def on_alarm(signum: int, frame: FrameType | None) -> None:
         if signals.deferring():          # a file's last write and rename: not cut in the middle
             return
         # raised again every 0.5 s while user code swallows it; after 5 s of that, the process
@@ -636,7 +640,7 @@ class Session:
                  on_twin: Callable[[Any], None] | None = None,
                  on_boot: Callable[[float, str | None], None] | None = None) -> None:
         self.opts = opts
-        self.rig: Rig | None = None   # type: ignore[assignment]  (set below; a --wall-timeout may land first)
+        self.rig: Rig | None = None   # set below; a --wall-timeout may land first
         self.spec = with_fields(load_scenario(opts.scenario), opts.scenario_fields)   # --set scenario.FIELD=V
         self.label = scenario_name(opts.scenario)
         self.plan = scenario_plan(self.spec, self.label, opts.T, opts.motion, opts.perna, opts.control)
@@ -646,7 +650,7 @@ class Session:
         self.expected_s = (opts.duration if opts.duration is not None
                            else BOOT_TIMEOUT_S + _after_boot_s(self.motion_s, opts.tilt))
         self.summary: dict[str, Any] | None = None
-        self.outputs: Any = None            # the files' temporary names (open_run), else None
+        self.outputs: Outputs | None = None            # the files' temporary names (open_run), else None
         self._driven = False
         self._completed = True              # false once the run's end cut the boot or the program
         self._stopped = False               # the run's end or a divergence ended it: nothing more runs
@@ -716,7 +720,7 @@ class Session:
         truth = twin.plant.truth()
         return {
             "t_s": twin.now_s,
-            "mode": twin.master.supervisor.mode_name,
+            "mode": twin.master.supervisor.mode_name,  # type: ignore[union-attr]  # a rig's twin has its Master
             "fell": mon.fell or truth.fell,
             "fell_at_s": mon.fell_at_s,
             "trunk_tilt_deg": truth.trunk_tilt_deg,
@@ -856,7 +860,7 @@ def open_run(opts: RunOptions | str | Scenario = "stand", /, **fields: Any) -> S
         outputs.discard()
         raise ScenarioInputError(f"cannot write there: {exc}") from None
     if temp:
-        opts = dataclasses.replace(opts, **temp, can_log_name=finals["can_log"].name if "can_log" in finals
+        opts = dataclasses.replace(opts, **temp, can_log_name=finals["can_log"].name if "can_log" in finals  # type: ignore[arg-type]  # the outputs' paths
                                    else opts.can_log_name)
     try:
         session = Session(opts)
@@ -895,7 +899,7 @@ def run(opts: RunOptions, on_progress: Callable[[float, float | None], None] | N
             # made first, then built: a --wall-timeout during the boot still finds the rig's time
             session = Session.__new__(Session)
             session.rig = None
-            session.__init__(opts, on_progress, on_twin, on_boot)   # type: ignore[misc]
+            session.__init__(opts, on_progress, on_twin, on_boot)   # type: ignore[misc]  # made by __new__ above
             with session:
                 summary = session.finish()
         return summary
@@ -948,7 +952,7 @@ def _host_controller(rig: Rig, step: Callable[..., Any], duration: float, period
         ctx = run_host_controller(rig.H, step, rig.monitor, duration, period_ms, should_stop=rig.stopped)
         return ctx.calls
     except _HostBoundReachedError as exc:      # the run reached its duration: completed
-        return exc.host_context.calls          # type: ignore[attr-defined]
+        return exc.host_context.calls          # type: ignore[attr-defined]  # set on the exception (controllers.py)
     except drivers.CommError as exc:
         if not rig.tolerates():
             raise ScenarioError(f"host controller: {exc}") from exc

@@ -16,7 +16,7 @@ import sys
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from humanoid_twin.clock import RealTimePacer
 from humanoid_twin.rig import Rig, RigOptions
@@ -74,13 +74,14 @@ def serve(opts: ServeOptions | None = None, *, should_stop: Callable[[], bool] =
         # Between two clients the line stays quiet longer than the Master's break-off gap and its
         # answer delay, and each client starts with the Master's receiver reset: no spliced frames,
         # no answer to somebody else's bytes.
-        options = dict(log=log, on_session=twin.master.reset_receiver, idle_timeout_s=opts.idle_timeout_s,
-                       quiet_us=FRAME_GAP_US + PROCESS_US + 1_000)
+        options: dict[str, Any] = dict(log=log, on_session=twin.master.reset_receiver,  # type: ignore[union-attr]  # a served twin has its Master
+                                       idle_timeout_s=opts.idle_timeout_s,
+                                       quiet_us=FRAME_GAP_US + PROCESS_US + 1_000)
         try:
             if opts.tcp_port is not None:
                 bridge = TcpBridge(twin.link, host=opts.host, port=opts.tcp_port, **options)
             else:
-                bridge = PtyBridge(twin.link, **options)
+                bridge = PtyBridge(twin.link, **options)  # type: ignore[assignment]  # either bridge
         except OSError as exc:
             where = f"{opts.host} port {opts.tcp_port}" if opts.tcp_port is not None else "a pty"
             raise ServeError(exc.errno, f"cannot listen on {where}: {exc.strerror or exc}") from exc

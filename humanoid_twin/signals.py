@@ -24,7 +24,7 @@ from __future__ import annotations
 import contextlib
 import signal
 import threading
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from types import FrameType
 from typing import Any
 
@@ -242,7 +242,7 @@ def deferred() -> Iterator[None]:
 _cleanups: list[Any] = []
 
 
-def on_hard_exit(fn: Any) -> None:
+def on_hard_exit(fn: Callable[[], object]) -> None:
     """Run ``fn()`` in :func:`hard_exit` (the CLI removes its temporary files there)."""
     _cleanups.append(fn)
 

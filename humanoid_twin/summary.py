@@ -81,7 +81,7 @@ def _run_facts(rig: Rig, plan: Plan, *, completed: bool, wall_s: float) -> dict[
         "wall_s": round(wall_s, 3),
         "rtf": round(twin.now_s / wall_s, 3) if wall_s > 0 else None,
         "can_frames": twin.network.frames_sent,
-        "serial_frames": twin.master.stats()["serial_frames_received"],
+        "serial_frames": twin.master.stats()["serial_frames_received"],  # type: ignore[union-attr]  # as above
         "boot_s": None if rig.boot_s is None else round(rig.boot_s, 3),
         "booted": rig.boot_error is None,
         "completed": completed,

@@ -214,7 +214,7 @@ class PtyBridge(_Bridge):
     REARM_AFTER_S = 0.002
 
     def __init__(self, link: SerialLink, **options: object) -> None:
-        super().__init__(link, **options)  # type: ignore[arg-type]
+        super().__init__(link, **options)  # type: ignore[arg-type]  # options: the base's keywords
         self._master_fd, slave_fd = os.openpty()
         try:
             tty.setraw(slave_fd, termios.TCSANOW)
@@ -381,7 +381,7 @@ class TcpBridge(_Bridge):
 
     def __init__(self, link: SerialLink, host: str = "127.0.0.1", port: int = 0, *,
                  backlog: int = DEFAULT_BACKLOG, **options: object) -> None:
-        super().__init__(link, **options)  # type: ignore[arg-type]
+        super().__init__(link, **options)  # type: ignore[arg-type]  # as above
         if isinstance(port, bool) or not isinstance(port, int) or not 0 <= port <= 65535:
             raise ValueError(f"TCP port must be 0..65535, got {port!r}")
         infos = socket.getaddrinfo(host, port, 0, socket.SOCK_STREAM, 0, socket.AI_PASSIVE)

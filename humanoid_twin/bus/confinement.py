@@ -53,7 +53,7 @@ class ErrorConfinement:
                 self._update_state(c)
                 if c.rec:
                     dirty = True
-        self._rec_dirty = dirty
+        self._rec_dirty = dirty  # type: ignore[misc]  # a CanNetwork slot (this base has none)
 
     def _update_state(self, c: CanController) -> None:
         if c.state == BUS_OFF:

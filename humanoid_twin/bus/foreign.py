@@ -23,7 +23,8 @@ if TYPE_CHECKING:
     from humanoid_twin.bus.network import CanController
 
 
-def open_foreign_bus(interface: str, channel: str, can_filters: list[dict] | None) -> can.BusABC:
+def open_foreign_bus(interface: str, channel: str,
+                     can_filters: can.typechecking.CanFilters | None) -> can.BusABC:
     """A node's own bus on a foreign python-can interface (its acceptance filters applied)."""
     kwargs: dict = {}
     if interface == "virtual":

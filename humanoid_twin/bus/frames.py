@@ -174,7 +174,7 @@ class Frame:
     def to_message(self) -> can.Message:
         """The frame as a new :class:`can.Message` (standard id, ``data`` a bytes copy)."""
         return can.Message(timestamp=self.timestamp, arbitration_id=self.arbitration_id,
-                           is_extended_id=False, channel=self.channel, dlc=self.dlc,
+                           is_extended_id=False, channel=self.channel, dlc=self.dlc,  # type: ignore[arg-type]  # a channel name
                            data=self.data, is_rx=self.is_rx)
 
 
@@ -196,14 +196,14 @@ def load_frame(frame: Frame | None, arbitration_id: int, data: bytes, bits: int)
 
 def as_message(msg: Frame | can.Message) -> can.Message:
     """``msg`` as a :class:`can.Message` for python-can code (a :class:`Frame` converted)."""
-    return msg.to_message() if type(msg) is Frame else msg
+    return msg.to_message() if type(msg) is Frame else msg  # type: ignore[return-value]  # a Message
 
 
 # -- acceptance filtering (the one place it is parsed and matched) ------------------------------
 Filters = tuple[tuple[int, int, "bool | None"], ...]
 
 
-def parse_filters(can_filters: list[dict] | None) -> Filters | None:
+def parse_filters(can_filters: can.typechecking.CanFilters | None) -> Filters | None:
     """python-can ``can_filters`` (``can_id``, ``can_mask``, optional ``extended``) as int tuples
     ``(id & mask, mask, extended-or-None)``; None (or empty) accepts every frame.
 

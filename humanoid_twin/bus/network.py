@@ -233,6 +233,11 @@ class _Request:
     finished requests for the next ones (``_release``)."""
 
     __slots__ = ("key", "req", "ctrl", "frame", "bits")
+    key: int
+    req: int
+    ctrl: CanController
+    frame: Frame
+    bits: int
 
 
 class CanNetwork(ForeignPath):
@@ -316,8 +321,8 @@ class CanNetwork(ForeignPath):
         self._error_cb = self._error
 
     # -- setup -------------------------------------------------------------------------------
-    def attach(self, name: str, can_filters: list[dict] | None,
-               on_rx: Callable[[Frame], None], rx_ids: Collection[int] | None = None) -> CanController:
+    def attach(self, name: str, can_filters: can.typechecking.CanFilters | None,
+               on_rx: Callable[[Frame], None] | None, rx_ids: Collection[int] | None = None) -> CanController:
         """Connect a node: its acceptance filters (slide 23) and its RX interrupt ``on_rx``, called
         with each frame as a :class:`~humanoid_twin.bus.frames.Frame` (python-can's attribute
         names; on every interface, and for frames a tool sent as a ``can.Message``).
@@ -340,12 +345,13 @@ class CanNetwork(ForeignPath):
         ctrl._filt = parse_filters(can_filters)
         if self._twin:
             # the RX interrupt is called straight from the bus; a bus-off node is muted instead
-            bus = TwinBus(self.channel, can_filters=can_filters, rx_callback=ctrl._on_rx, rx_ids=rx_ids)
+            bus = TwinBus(self.channel, can_filters=can_filters, rx_callback=ctrl._on_rx,  # type: ignore[arg-type]
+                          rx_ids=rx_ids)   # (ignore: a network node's callback takes Frames)
             bus.mark_network_node()
             ctrl._port = bus.port
+            ctrl.bus = bus
         else:
-            bus = open_foreign_bus(self.interface, self.channel, can_filters)
-        ctrl.bus = bus
+            ctrl.bus = open_foreign_bus(self.interface, self.channel, can_filters)
         self._controllers[name] = ctrl
         self._nodes.append(ctrl)
         return ctrl
@@ -474,7 +480,7 @@ class CanNetwork(ForeignPath):
         else:
             bits = self._checked_bits(ctrl, msg)
             # the wire carries frames of its own: a python-can message is copied into one
-            frame = msg if type(msg) is Frame else Frame(msg.arbitration_id, msg.data)
+            frame = msg if type(msg) is Frame else Frame(msg.arbitration_id, msg.data)  # type: ignore[arg-type]  # Frame copies it with bytes()
         arb = frame.arbitration_id
         self._seq = seq = self._seq + 1
         clock = self.clock
@@ -683,7 +689,7 @@ class CanNetwork(ForeignPath):
         if self._outcome == _DROP:
             self.frames_dropped += 1
         elif self._twin:
-            ctrl._port.deliver(frame)  # type: ignore[union-attr]  # TwinBus.deliver, compiled
+            ctrl._port.deliver(frame)  # type: ignore[union-attr]  # set with _twin (attach)
         else:
             self._send_and_drain(ctrl, frame, t)
         if self._listeners:
@@ -788,5 +794,5 @@ class CanNetwork(ForeignPath):
         return n
 
 
-def _ignore(msg: can.Message) -> None:
+def _ignore(msg: object) -> None:
     """on_rx of a node that does not listen."""

@@ -20,6 +20,7 @@ from __future__ import annotations
 import threading
 import urllib.parse
 from collections.abc import Callable
+from typing import Any
 
 import serial
 from serial.serialutil import PortNotOpenError, SerialBase, SerialException
@@ -67,7 +68,7 @@ class Serial(SerialBase):
 
     BAUDRATES = SerialBase.BAUDRATES + (230400, 460800, 921600)
 
-    def __init__(self, *args: object, **kwargs: object) -> None:
+    def __init__(self, *args: Any, **kwargs: Any) -> None:   # pyserial's own arguments, passed on
         self._link: SerialLink | None = None
         self._advance: Callable[[int], None] | None = None
         self._name: str | None = None
@@ -82,7 +83,7 @@ class Serial(SerialBase):
             raise SerialException("Port is already open.")
         if self._port is None:
             raise SerialException("Port must be configured before it can be used.")
-        name, step = self.from_url(self.port)
+        name, step = self.from_url(self._port)
         with _LOCK:
             entry = _LINKS.get(name)
             if entry is None:
@@ -207,7 +208,7 @@ class Serial(SerialBase):
         del self._rx[:size]
         return out
 
-    def write(self, data: bytes) -> int:
+    def write(self, data: bytes) -> int:  # type: ignore[override]  # as pyserial's ports (stubs: Buffer)
         """Hand ``data`` to the link; it goes on the line at the twin's now."""
         link = self._check_settings()
         data = serial.to_bytes(data)

@@ -124,10 +124,10 @@ def _copy(msg: Frame | can.Message) -> can.Message:
         return msg.to_message()
     return can.Message(timestamp=msg.timestamp, arbitration_id=msg.arbitration_id,
                        is_extended_id=msg.is_extended_id, is_remote_frame=msg.is_remote_frame,
-                       is_error_frame=msg.is_error_frame, channel=msg.channel, dlc=msg.dlc,
+                       is_error_frame=msg.is_error_frame, channel=msg.channel, dlc=msg.dlc,  # type: ignore[arg-type]  # a channel name
                        data=bytearray(msg.data), is_fd=msg.is_fd, is_rx=msg.is_rx,
-                       bitrate_switch=msg.bitrate_switch,
-                       error_state_indicator=msg.error_state_indicator)
+                       bitrate_switch=msg.bitrate_switch,  # type: ignore[union-attr]  # a Message here
+                       error_state_indicator=msg.error_state_indicator)  # type: ignore[union-attr]  # as above
 
 
 class RxPort:
@@ -163,7 +163,7 @@ class RxPort:
             return
         cbs, skips = route
         for cb in cbs:
-            cb(msg)
+            cb(msg)     # type: ignore[arg-type]  # the network's own nodes take Frames
         for p in skips:
             p.rx_skipped += 1
 
@@ -214,7 +214,7 @@ class TwinBus(BusABC):
         # the per-frame path: the routes of this bus's frames and its count of frames outside
         # rx_ids (RxPort)
         self.port = RxPort(self)
-        self.deliver = self.port.deliver
+        self.deliver = self.port.deliver  # type: ignore[method-assign]  # the port's, one call less
         self._queue: deque[can.Message] = deque()
         self._cond = threading.Condition()
         self._waiting = 0
@@ -265,7 +265,7 @@ class TwinBus(BusABC):
     # -- filters -----------------------------------------------------------------------------
     def _apply_filters(self, filters: can.typechecking.CanFilters | None) -> None:
         """Precompute the filters as int tuples (no dict work per frame; ``frames.parse_filters``)."""
-        self._filt = parse_filters(filters)  # type: ignore[arg-type]
+        self._filt = parse_filters(filters)
         medium = getattr(self, "_medium", None)
         if medium is not None:
             medium.invalidate()
@@ -343,7 +343,7 @@ class TwinBus(BusABC):
             if bus.skips(arb, extended):
                 bus.port.rx_skipped += 1
             elif cb is not None:
-                cb(msg if bus._network_node else as_message(msg))
+                cb(msg if bus._network_node else as_message(msg))  # type: ignore[arg-type]  # as above
             else:
                 # a queueing reader (a tool) reads later: give it its own copy, the sender may
                 # reuse its message object once the frame is done (the twin's boards do)

@@ -23,7 +23,7 @@ from humanoid_twin.cli.options import usage_error
 __all__ = ["add_compare_parsers", "cmd_compare", "cmd_calibrate"]
 
 
-def add_compare_parsers(sub: Any) -> None:
+def add_compare_parsers(sub: argparse._SubParsersAction[Any]) -> None:
     """The ``compare`` and ``calibrate`` subcommands (registered by cli/main.py)."""
     from humanoid_twin.compare.core import SUPPORTS
 

@@ -8,7 +8,6 @@ The kinds and their arguments come from ``humanoid_twin.faults.KINDS``; a SPEC t
 from __future__ import annotations
 
 import argparse
-from typing import Any
 
 from humanoid_twin.cli.argtypes import positive_seconds
 from humanoid_twin.faults import KINDS, FaultSpec, FaultSpecError, parse_fault
@@ -35,7 +34,7 @@ def add_fault_options(p: argparse.ArgumentParser) -> None:
                    "while ready (default: off)")
 
 
-def supervisor_config(args: Any) -> SupervisorConfig | None:
+def supervisor_config(args: argparse.Namespace) -> SupervisorConfig | None:
     """The :class:`~humanoid_twin.master.supervisor.SupervisorConfig` the CLI options ask for."""
     if getattr(args, "host_link", None) is None:
         return None

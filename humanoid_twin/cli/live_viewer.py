@@ -12,10 +12,13 @@ from __future__ import annotations
 
 import os
 import sys
-from typing import Any
+from typing import TYPE_CHECKING
 
 from humanoid_twin.clock import RealTimePacer
 from humanoid_twin.plant import ViewerWindow, ViewerWindowError
+
+if TYPE_CHECKING:
+    from humanoid_twin.twin import Twin
 
 FRAME_US = 20_000          # one refresh per 20 ms of simulated time (50 frames per simulated second)
 
@@ -39,7 +42,7 @@ class LiveViewer:
         self.window: ViewerWindow | None = None
         self._pacer: RealTimePacer | None = None
 
-    def attach(self, twin: Any) -> None:
+    def attach(self, twin: Twin) -> None:
         """Open the window on ``twin.plant`` and refresh it every :data:`FRAME_US` of its clock."""
         try:
             self.window = twin.plant.open_viewer()

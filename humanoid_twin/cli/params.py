@@ -80,7 +80,7 @@ def params_from_args(args: argparse.Namespace) -> dict[str, float]:
 
 
 # -- humanoid-twin params ----------------------------------------------------------------------------
-def add_params_parser(sub: Any) -> argparse.ArgumentParser:
+def add_params_parser(sub: argparse._SubParsersAction[Any]) -> argparse.ArgumentParser:
     """The ``params`` subcommand (``sub``: the CLI's subparsers)."""
     p = sub.add_parser(
         "params", help="list the robot's named parameters; check, show or compare params files",

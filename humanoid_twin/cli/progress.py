@@ -13,7 +13,10 @@ shorter than this seed's boot (2.5-2.65 s) is then reported in one line, the err
 from __future__ import annotations
 
 import time
-from typing import Any, TextIO
+from typing import TYPE_CHECKING, Any, TextIO
+
+if TYPE_CHECKING:
+    from tqdm import tqdm
 
 TICK_S = 0.1      # the run calls update() every 0.1 s of virtual time (scenarios.run)
 _BAR_FORMAT = ("{desc}: {percentage:3.0f}%|{bar}| {n:.1f}/{total:.1f} s simulated "
@@ -32,8 +35,8 @@ class RunProgress:
         self.stream = stream
         self.tty = bool(getattr(stream, "isatty", lambda: False)())
         self._t0 = time.perf_counter()
-        self._bar: Any = None
-        self._boot_bar: Any = None
+        self._bar: tqdm[Any] | None = None
+        self._boot_bar: tqdm[Any] | None = None
         self._boot_end_s: float | None = None
         self._next_pct = 10
         self._last: tuple[float, float | None] | None = None
@@ -78,9 +81,9 @@ class RunProgress:
         if not self.tty and self._last is not None and self._last[1] is not None:
             t_s, end_s = self._last
             if self._next_pct <= 100:          # the 100 % line was not written yet
-                if t_s + TICK_S >= end_s - 1e-9:   # the last tick before the end: the run got there
-                    t_s = end_s
-                pct = 100.0 * t_s / end_s if end_s > 0 else 100.0
+                if t_s + TICK_S >= end_s - 1e-9:  # type: ignore[operator]  # the last tick before the end: the run got there (set with _last)
+                    t_s = end_s  # type: ignore[assignment]  # as above
+                pct = 100.0 * t_s / end_s if end_s > 0 else 100.0  # type: ignore[operator]  # as above
                 self._line(f"{pct:3.0f}% {t_s:.1f}/{end_s:.1f} s simulated, "
                            f"{time.perf_counter() - self._t0:.1f} s wall")
             self._next_pct = 110
@@ -118,7 +121,7 @@ class RunProgress:
         self.stream.write(f"{self.label}: {text}\n")
         self.stream.flush()
 
-    def _tqdm(self, total: float | None, desc: str, fmt: str, initial: float = 0.0) -> Any:
+    def _tqdm(self, total: float | None, desc: str, fmt: str, initial: float = 0.0) -> tqdm[Any]:
         from tqdm import tqdm
 
         return tqdm(total=total, desc=desc, file=self.stream, unit="s", initial=initial,

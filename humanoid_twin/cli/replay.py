@@ -32,7 +32,7 @@ from humanoid_twin.seeds import SEED_MAX
 EXIT_DIFFER = 1
 
 
-def add_replay_parser(sub: Any) -> None:
+def add_replay_parser(sub: argparse._SubParsersAction[Any]) -> None:
     """The ``replay`` command's parser, on ``humanoid-twin``'s sub-parsers."""
     from humanoid_twin.replay import REPLAY_CAN_INTERFACES
 

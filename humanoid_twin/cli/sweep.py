@@ -27,7 +27,7 @@ from humanoid_twin.sweep.table import SweepError, read_table, table_format
 NOT_PARAMS = {"command", "scenario", "out", "no_record", "can_log", "serial_log", "json", "no_progress"}
 
 
-def add_sweep_parser(sub: Any) -> argparse.ArgumentParser:
+def add_sweep_parser(sub: argparse._SubParsersAction[Any]) -> argparse.ArgumentParser:
     """The ``sweep`` subcommand (``sub``: the CLI's subparsers). Options it does not know are
     ``run``'s, given to every run."""
     p = sub.add_parser(
@@ -273,7 +273,7 @@ def option_kind(action: argparse.Action) -> str:
     if action.type is None or isinstance(action, argparse._AppendAction):
         return "string"
     try:
-        value = action.type("1")
+        value = action.type("1")  # type: ignore[operator]  # a run option's type is a callable
     except (argparse.ArgumentTypeError, TypeError, ValueError):
         return "string"
     if isinstance(value, bool):
@@ -290,7 +290,7 @@ def known_columns(parser: argparse.ArgumentParser, params: dict[str, list[str]])
     from humanoid_twin.params import registry
     from humanoid_twin.summary import table_columns
 
-    run = parser.run_parser
+    run = parser.run_parser  # type: ignore[attr-defined]  # set by the CLI's parser
     options = {a.dest: option_kind(a) for a in run._actions     # argparse has no public list of them
                if a.option_strings and a.dest not in NOT_PARAMS and a.dest != "help"
                and a.nargs != 0}
@@ -426,7 +426,7 @@ def sweep_command(args: argparse.Namespace, parser: argparse.ArgumentParser) -> 
         signals.user_code_done()    # the runs' own code runs in their own processes
     if args.recordings is not None:
         args.recordings.mkdir(parents=True, exist_ok=True)
-    points = randomized_grid(params, args.draws, seeds)     # the grid x the drawn robots x the seeds
+    points = randomized_grid(params, args.draws, seeds)  # type: ignore[arg-type]  # the grid x the drawn robots x the seeds (values as text)
     progress = None if args.no_progress else sys.stderr
     if progress is not None:
         _announce(args, task, len(points), progress)

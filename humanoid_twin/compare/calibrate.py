@@ -195,7 +195,7 @@ class _RayWorker:
         self.problem = problem
 
     def residual(self, x: np.ndarray) -> np.ndarray:
-        return self.problem.residual(x)
+        return self.problem.residual(x)  # type: ignore[arg-type]  # as above
 
 
 def _steps(unknowns: Sequence[Unknown], x: np.ndarray) -> np.ndarray:
@@ -420,9 +420,9 @@ def fit(problem: FitProblem, *, validate: Sequence[RobotLog] = (), jobs: int = 1
     # the unidentified keep their start: the after-fit residual is that of the values written
     if any(not e["identifiable"] for e in fitted.values()):
         x_written = np.array([e["value"] for e in fitted.values()])
-        after = problem.run(x_written)
+        after = problem.run(x_written)  # type: ignore[arg-type]  # as above
     val_before = problem.run(x0, validate) if validate else []
-    val_after = problem.run(np.array([e["value"] for e in fitted.values()]), validate) if validate else []
+    val_after = problem.run(np.array([e["value"] for e in fitted.values()]), validate) if validate else []  # type: ignore[arg-type]  # as above
     g, w = problem.groups, problem.window
     return FitResult(fitted=fitted, values=values, residual_before=_norm(before, g, w),
                      residual_after=_norm(after, g, w),

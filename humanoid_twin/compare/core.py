@@ -31,7 +31,7 @@ import math
 import time
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -42,6 +42,11 @@ from humanoid_twin.hardware import PWM_PERIOD_US
 from humanoid_twin.master.pic import ROUND_US, SLAVE_PERIOD_US, TIMER_PERIOD_US
 from humanoid_twin.protocol import canframes
 from humanoid_twin.protocol.wire import STATUS_CALIB
+
+if TYPE_CHECKING:
+    import can
+
+    from humanoid_twin.twin import Twin
 
 __all__ = ["CompareOptions", "CompareResult", "LogPlayer", "PHASES", "SUPPORTS", "compare_frames", "run_twin",
            "compare_log", "key_frames", "twin_phases"]
@@ -164,7 +169,7 @@ class LogPlayer:
 
     NODE = "log-player"
 
-    def __init__(self, twin: Any, log: RobotLog, preroll: list[LogFrame] | None = None) -> None:
+    def __init__(self, twin: Twin, log: RobotLog, preroll: list[LogFrame] | None = None) -> None:
         self.clock = twin.clock
         self.ctrl = twin.network.attach(self.NODE, canframes.master_filters(), None)
         self.frames = list(preroll or ()) + log.master
@@ -196,7 +201,7 @@ class _Collector:
     def __init__(self) -> None:
         self.frames: list[LogFrame] = []
 
-    def on_message_received(self, msg: Any) -> None:
+    def on_message_received(self, msg: can.Message) -> None:
         arb = msg.arbitration_id
         if arb in SENSORS_OF or arb in ACTUATION_OF:
             self.frames.append(LogFrame(round(msg.timestamp * US_PER_S), arb, bytes(msg.data)))
@@ -239,7 +244,7 @@ def preroll_frames(log: RobotLog) -> list[LogFrame]:
     for t in range(0, PREROLL_US, ROUND_US):
         for scu, ids in canframes.ACTUATION_IDS.items():
             for idx, arb in enumerate(ids):
-                f = first.get(arb)
+                f = first.get(arb)  # type: ignore[assignment]  # every actuation id is in the log's first frames
                 if f is not None:
                     slot_us = t + (scu - 1) * SLAVE_PERIOD_US + 2 * idx * TIMER_PERIOD_US
                     out.append(LogFrame(slot_us, arb, f.data))
@@ -250,7 +255,7 @@ def _merged(log: RobotLog) -> list[LogFrame]:
     return sorted(log.master + log.sensors, key=lambda f: f.t_us)
 
 
-def _hold_support(twin: Any, support: str) -> None:
+def _hold_support(twin: Twin, support: str) -> None:
     if support == "stand":
         twin.plant.hold_trunk()
 
@@ -283,7 +288,7 @@ def run_twin(log: RobotLog, opts: CompareOptions, phases: Mapping[int, int] | No
     try:
         _hold_support(twin, opts.support)
         collector = _Collector()
-        twin.network.add_listener(collector)
+        twin.network.add_listener(collector)  # type: ignore[arg-type]  # a listener by duck typing
         preroll = preroll_frames(log) if log.started_after_boot else []
         if preroll:
             log = log.shifted(PREROLL_US)

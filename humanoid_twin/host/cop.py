@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
-from typing import Any, NamedTuple
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
 
@@ -40,6 +40,9 @@ from humanoid_twin.host.planners import TICK_S
 from humanoid_twin.host.tables import RobotTables, default_tables
 from humanoid_twin.protocol.rs232 import PARAM_CURRENT, PARAM_POSITION
 from humanoid_twin.protocol.wire import check_scu, int_in_range
+
+if TYPE_CHECKING:
+    from humanoid_twin.interfaces import HostPort
 
 __all__ = [
     "COP_MIN_LOAD",
@@ -125,14 +128,14 @@ def _scu(scu: Any) -> int:
     return s
 
 
-def _sample(H: Any, s: int) -> tuple[list[float], list[float], list[float]]:
+def _sample(H: HostPort, s: int) -> tuple[list[float], list[float], list[float]]:
     r = readspecial(H, s)
-    react = list(r.special) if r.error == ErrorCode.OK else [math.nan] * 4
+    react = list(r.special) if r.error == ErrorCode.OK else [math.nan] * 4  # type: ignore[arg-type]  # answered (error OK)
     p = readjoint(H, s, PARAM_POSITION)
-    pos = list(p.servos) if p.error == ErrorCode.OK else [math.nan] * 3
+    pos = list(p.servos) if p.error == ErrorCode.OK else [math.nan] * 3  # type: ignore[arg-type]  # answered (error OK)
     c = readjoint(H, s, PARAM_CURRENT)
-    cur = list(c.servos) if c.error == ErrorCode.OK else [math.nan] * 3
-    return react, pos, cur
+    cur = list(c.servos) if c.error == ErrorCode.OK else [math.nan] * 3  # type: ignore[arg-type]  # answered (error OK)
+    return react, pos, cur  # type: ignore[return-value]  # ints widen to floats
 
 
 def _check_time(name: str, v: Any, positive: bool = True) -> float:
@@ -145,7 +148,7 @@ def _check_time(name: str, v: Any, positive: bool = True) -> float:
     return f
 
 
-def _loop(H: Any, s: int, maxtime: float, dt: float, on_sample: Any = None) -> CopData:
+def _loop(H: HostPort, s: int, maxtime: float, dt: float, on_sample: Any = None) -> CopData:
     react, pos, cur, tt = [], [], [], []
     t0 = timebase.now(H)
     t_end = t0 + maxtime
@@ -169,7 +172,7 @@ def _loop(H: Any, s: int, maxtime: float, dt: float, on_sample: Any = None) -> C
                    np.asarray(cur, dtype=float).reshape(-1, 3).T, np.asarray(tt, dtype=float), s)
 
 
-def cop_acquire(H: Any, maxtime: float, scu: int = 1, *, dt: float = TICK_S) -> CopData:
+def cop_acquire(H: HostPort, maxtime: float, scu: int = 1, *, dt: float = TICK_S) -> CopData:
     """``cop_acquire`` (table 27): sample the foot of ``scu`` (1 right leg, 2 left leg) every
     ``dt`` s for ``maxtime`` s on the time base: force readings, CoP, the board's 3 servo
     positions and currents. Failed reads leave NaN."""
@@ -252,7 +255,7 @@ def cop_graphs(data: CopData | str | Path, path: str | Path, *, title: str | Non
 
 
 def cop_realtime(
-    H: Any,
+    H: HostPort,
     scu: int = 1,
     duration: float = 10.0,
     *,

@@ -44,7 +44,7 @@ import sys
 import termios
 from collections.abc import Sequence
 from enum import IntEnum
-from typing import Any, NamedTuple
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 import serial
 
@@ -92,6 +92,9 @@ from humanoid_twin.protocol.wire import (
     ErrorState,
     int_in_range,
 )
+
+if TYPE_CHECKING:
+    from humanoid_twin.interfaces import HostPort, SerialPort
 
 __all__ = [
     "DEFAULT_RATE",
@@ -375,7 +378,7 @@ def initcom(
     return H, state
 
 
-def killcom(H: Any) -> int:
+def killcom(H: HostPort) -> int:
     """``stat = killcom(H)``: close the line; 1 on success (also if it was closed), 0 on failure."""
     try:
         _port(H).close()
@@ -392,7 +395,7 @@ def _tries(max_tries: int) -> int:
     return int_in_range("max_tries", max_tries, 1, None, "tries")
 
 
-def _reset(port: Any) -> None:
+def _reset(port: SerialPort) -> None:
     """Fig. 19/20: re-initialise the communications (drop whatever is in both buffers)."""
     try:
         port.reset_input_buffer()
@@ -428,7 +431,8 @@ def _check(frame: bytes, rx: bytes, expect: tuple[int, ...]) -> tuple[ErrorCode,
     return ErrorCode.OK, ""
 
 
-def _exchange(H: Any, frame: bytes, expect: tuple[int, ...], max_tries: int) -> tuple[bytes, int, str, int]:
+def _exchange(H: HostPort, frame: bytes, expect: tuple[int, ...],
+              max_tries: int) -> tuple[bytes, int, str, int]:
     """Write ``frame``, read 6 bytes, retry as figs. 18-20. Returns ``(rx, error, errorstr, tries)``."""
     port = _port(H)
     n = _tries(max_tries)
@@ -523,7 +527,7 @@ def _param(param: Any, allowed: Sequence[int], what: str) -> int:
 # the drivers (table 20)
 
 
-def calibcom(H: Any, *, max_tries: int = DEFAULT_MAX_TRIES) -> CalibResult:
+def calibcom(H: HostPort, *, max_tries: int = DEFAULT_MAX_TRIES) -> CalibResult:
     """``calibcom(H)``: ask the Master for its test sequence (usartSendTestMsg).
 
     ``ok`` is True when ``rx`` is exactly FA F9 F8 F7 F6 F5.
@@ -533,7 +537,7 @@ def calibcom(H: Any, *, max_tries: int = DEFAULT_MAX_TRIES) -> CalibResult:
     return CalibResult(rx, rx == TEST_MESSAGE, err, text, tries)
 
 
-def readcanstat(H: Any, *, max_tries: int = DEFAULT_MAX_TRIES) -> CanStatResult:
+def readcanstat(H: HostPort, *, max_tries: int = DEFAULT_MAX_TRIES) -> CanStatResult:
     """``[array, state, rx, error, errorstr, tries] = readcanstat(H)``: the CAN bus state.
 
     ``array`` = [error state, TEC, REC] of the Master's CAN controller (0 error-active,
@@ -547,7 +551,7 @@ def readcanstat(H: Any, *, max_tries: int = DEFAULT_MAX_TRIES) -> CanStatResult:
     return CanStatResult((rx[1], rx[2], rx[3]), rx[4], rx, err, text, tries)
 
 
-def readjoint(H: Any, scu_id: int, param: int, *, max_tries: int = DEFAULT_MAX_TRIES) -> ReadJointResult:
+def readjoint(H: HostPort, scu_id: int, param: int, *, max_tries: int = DEFAULT_MAX_TRIES) -> ReadJointResult:
     """``[servos, state, rx, error, errorstr, tries] = readjoint(H, scu_id, param)``.
 
     ``param``: 0 position (signed degrees), 1 mean velocity (signed degrees per 20 ms tick),
@@ -566,7 +570,7 @@ def readjoint(H: Any, scu_id: int, param: int, *, max_tries: int = DEFAULT_MAX_T
     return ReadJointResult(servos, rx[4], rx, err, text, tries)
 
 
-def readspecial(H: Any, scu_id: int, *, max_tries: int = DEFAULT_MAX_TRIES) -> ReadSpecialResult:
+def readspecial(H: HostPort, scu_id: int, *, max_tries: int = DEFAULT_MAX_TRIES) -> ReadSpecialResult:
     """``[special, rx, error, errorstr, tries] = readspecial(H, scu_id)``: the 4 force sensors
     (front-left, front-right, rear-left, rear-right; 8-bit, 128 = the calibration load); on the
     body board (5) its inclinometer and gyroscope, 128 = zero (``hardware.imu_from_counts``)."""
@@ -578,7 +582,7 @@ def readspecial(H: Any, scu_id: int, *, max_tries: int = DEFAULT_MAX_TRIES) -> R
 
 
 def applyjoint(
-    H: Any, scu_id: int, param: int, servos: Sequence[int], *, max_tries: int = DEFAULT_MAX_TRIES
+    H: HostPort, scu_id: int, param: int, servos: Sequence[int], *, max_tries: int = DEFAULT_MAX_TRIES
 ) -> ApplyResult:
     """``[rx, error, errorstr, tries] = applyjoint(H, scu_id, param, servos)``.
 
@@ -599,7 +603,7 @@ def applyjoint(
 
 
 def applycontrol(
-    H: Any, scu_id: int, param: int, servos: Sequence[int], *, max_tries: int = DEFAULT_MAX_TRIES
+    H: HostPort, scu_id: int, param: int, servos: Sequence[int], *, max_tries: int = DEFAULT_MAX_TRIES
 ) -> ApplyResult:
     """``[rx, error, errorstr, tries] = applycontrol(H, scu_id, param, servos)``.
 
@@ -614,7 +618,7 @@ def applycontrol(
     return ApplyResult(*_exchange(H, frame, _EXPECT_STATUS, max_tries))
 
 
-def readsupervisor(H: Any, *, max_tries: int = DEFAULT_MAX_TRIES) -> SupervisorResult:
+def readsupervisor(H: HostPort, *, max_tries: int = DEFAULT_MAX_TRIES) -> SupervisorResult:
     """``[mode, fault, node, nfaults, rx, error, errorstr, tries] = readsupervisor(H)``: the
     Master's supervisor (``FF C2 00 00 00 BCC`` -> ``FD MODE FAULT NODE NFAULTS BCC``)."""
     frame = encode_request(Op.MASTER, 0, PARAM_SUPERVISOR, SUPERVISOR_READ)
@@ -624,31 +628,31 @@ def readsupervisor(H: Any, *, max_tries: int = DEFAULT_MAX_TRIES) -> SupervisorR
     return SupervisorResult(rx[1], rx[2], rx[3], rx[4], rx, err, text, tries)
 
 
-def estop(H: Any, *, max_tries: int = DEFAULT_MAX_TRIES) -> ApplyResult:
+def estop(H: HostPort, *, max_tries: int = DEFAULT_MAX_TRIES) -> ApplyResult:
     """``[rx, error, errorstr, tries] = estop(H)``: emergency stop (``FF C2 01 00 00 BCC``, FB
     echo): PWM off on every board within one CAN round; only reads and reset accepted after."""
     frame = encode_request(Op.MASTER, 0, PARAM_SUPERVISOR, SUPERVISOR_ESTOP)
     return ApplyResult(*_exchange(H, frame, _EXPECT_STATUS, max_tries))
 
 
-def reset(H: Any, *, max_tries: int = DEFAULT_MAX_TRIES) -> ApplyResult:
+def reset(H: HostPort, *, max_tries: int = DEFAULT_MAX_TRIES) -> ApplyResult:
     """``[rx, error, errorstr, tries] = reset(H)``: clear the latched faults and run a new
     self-check (``FF C2 02 00 00 BCC``, FB echo); after an emergency stop, power on again."""
     frame = encode_request(Op.MASTER, 0, PARAM_SUPERVISOR, SUPERVISOR_RESET)
     return ApplyResult(*_exchange(H, frame, _EXPECT_STATUS, max_tries))
 
 
-def raise_for_error(result: tuple[Any, ...], what: str = "request", H: Any = None) -> None:
+def raise_for_error(result: tuple[Any, ...], what: str = "request", H: HostPort | None = None) -> None:
     """Raise the :class:`CommError` subclass matching a driver result's ``error`` (no-op if 0).
 
     With the port ``H``, an APPLY answered FC is checked against the Master's supervisor: when
     it is in ``safe`` or ``estop`` the error is a :class:`SupervisorRefused` naming the mode and
     the fault."""
-    err = result.error  # type: ignore[attr-defined]
+    err = result.error  # type: ignore[attr-defined]  # a driver's NamedTuple result
     if err == ErrorCode.OK:
         return
     code = ErrorCode(err)
-    rx = result.rx  # type: ignore[attr-defined]
+    rx = result.rx  # type: ignore[attr-defined]  # as above
     opcode = parse_opcode(rx[1]) if len(rx) == 6 else (-1, -1, -1)
     is_apply = 0 <= opcode[0] <= Op.APPLY_CONTROL
     # a reset the supervisor refused (a board not answering: the latch holds, docs/supervisor.md)
@@ -661,9 +665,9 @@ def raise_for_error(result: tuple[Any, ...], what: str = "request", H: Any = Non
                     if is_reset else "readsupervisor; reset to recover")
             raise SupervisorRefused(
                 f"{what}: refused by the Master's supervisor: mode {sup.mode_name}{fault} "
-                f"({hint})", code, rx, result.tries,  # type: ignore[attr-defined]
-                sup.mode, sup.fault or 0, sup.node or 0)
-    raise _EXC[code](f"{what}: {result.errorstr}", code, result.rx, result.tries)  # type: ignore[attr-defined]
+                f"({hint})", code, rx, result.tries,  # type: ignore[attr-defined]  # as above
+                sup.mode, sup.fault or 0, sup.node or 0)  # type: ignore[arg-type]  # the state byte of an answered request
+    raise _EXC[code](f"{what}: {result.errorstr}", code, result.rx, result.tries)  # type: ignore[attr-defined]  # as above
 
 
 # ------------------------------------------------------------------------------------------
@@ -773,7 +777,7 @@ class HumanoidClient:
     def can_status(self) -> CanStatus:
         """``readcanstat``: error state, TEC, REC, answered-slaves mask."""
         r = self._done(readcanstat(self.serial_port, max_tries=self.max_tries), "readcanstat")
-        return CanStatus(*r.array, r.state)
+        return CanStatus(*r.array, r.state)  # type: ignore[call-arg]  # CanStatus is a NamedTuple of 4
 
     def read(self, scu: int, what: str = "position") -> tuple[tuple[int, int, int], int]:
         """``readjoint``: (``values``, ``status``) with ``what`` in position/velocity/current."""

@@ -13,7 +13,7 @@ from __future__ import annotations
 import math
 import warnings
 from collections.abc import Iterable, Sequence
-from typing import Any, NamedTuple
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
 
@@ -42,6 +42,9 @@ from humanoid_twin.protocol.rs232 import (
     PARAM_VELOCITY,
 )
 from humanoid_twin.protocol.wire import N_SCU, SCUS, ControlType, check_scu, int_in_range
+
+if TYPE_CHECKING:
+    from humanoid_twin.interfaces import HostPort
 
 __all__ = [
     "ALL_SCUS",
@@ -109,7 +112,7 @@ def servo_command(scu: int, leg_angles: Any, tables: RobotTables | None = None) 
     return [int(v) for v in np.rint(servo)]
 
 
-def apply_joint(H: Any, scu: int, param: int, data: Sequence[int], what: str) -> None:
+def apply_joint(H: HostPort, scu: int, param: int, data: Sequence[int], what: str) -> None:
     """``applyjoint(H, scu_id, param, servos)`` (seed 000 table 20) that raises instead of
     returning an error code: a request that still fails after its retries raises the
     :class:`~humanoid_twin.host.drivers.CommError` subclass of its error, its message starting
@@ -117,11 +120,11 @@ def apply_joint(H: Any, scu: int, param: int, data: Sequence[int], what: str) ->
     raise_for_error(applyjoint(H, scu, param, data), f"{what} (SCU {scu})", H)
 
 
-def _control(H: Any, scu: int, param: int, data: Sequence[int], what: str) -> None:
+def _control(H: HostPort, scu: int, param: int, data: Sequence[int], what: str) -> None:
     raise_for_error(applycontrol(H, scu, param, data), f"{what} (SCU {scu})", H)
 
 
-def send_gains(H: Any, scu: int, k_scu: Any) -> None:
+def send_gains(H: HostPort, scu: int, k_scu: Any) -> None:
     """``applycontrol`` KI, KP, KD and CONTROLON for one SCU from ``k_scu`` (3 x 4: rows
     servos, columns KI KP KD control type)."""
     arr = np.asarray(k_scu)
@@ -135,7 +138,7 @@ def send_gains(H: Any, scu: int, k_scu: Any) -> None:
 class _Sampler:
     """Reads position, velocity and current of the SCUs driven, into growing lists."""
 
-    def __init__(self, H: Any, scus: tuple[int, ...]) -> None:
+    def __init__(self, H: HostPort, scus: tuple[int, ...]) -> None:
         self.H = H
         self.scus = scus
         self.tt: list[float] = []
@@ -184,7 +187,7 @@ class _Sampler:
 
 
 def exe_traj(
-    H: Any,
+    H: HostPort,
     t: Any,
     pos_apply: Any,
     Textra: float,
@@ -301,7 +304,7 @@ class _Sent:
 
 
 def recycle(
-    H: Any,
+    H: HostPort,
     speed: int,
     correct_flag: bool,
     *,
@@ -346,7 +349,7 @@ def _gains_array(k: Any, n_scus: int) -> np.ndarray:
 
 
 def controller(
-    H: Any,
+    H: HostPort,
     k: Any = None,
     control: int | ControlType = ControlType.LOCOMOTION_CONTROL,
     *,
@@ -364,14 +367,14 @@ def controller(
         send_gains(H, s, control_row(ctype, g))
 
 
-def controller_off(H: Any, *, scus: Iterable[int] = ALL_SCUS) -> None:
+def controller_off(H: HostPort, *, scus: Iterable[int] = ALL_SCUS) -> None:
     """``controller_off`` (table 26): NO_CONTROL (open loop) on every servo of ``scus``."""
     for s in _scus(scus):
         _control(H, s, PARAM_CONTROLON, [0, 0, 0], "controller off")
 
 
 def power_on(
-    H: Any,
+    H: HostPort,
     scus: Iterable[int] = ALL_SCUS,
     *,
     calibrate: bool = False,
@@ -408,10 +411,10 @@ def power_on(
             r = readjoint(H, s, PARAM_POSITION)
             if r.error != ErrorCode.OK:
                 continue
-            status[s] = r.state
-            if not r.state & STATUS_CALIB:
+            status[s] = r.state  # type: ignore[assignment]  # an answer's state (error OK)
+            if not r.state & STATUS_CALIB:  # type: ignore[operator]  # as above
                 seen_running.add(s)
-            elif r.state & want == want and s in seen_running:
+            elif r.state & want == want and s in seen_running:  # type: ignore[operator]  # as above
                 pending.discard(s)
         if not pending:
             return status

@@ -92,7 +92,7 @@ def load_tables(path: str | Path | None = None) -> RobotTables:
         raise TablesError(f"{p} is not valid JSON: {exc}") from None
     if not isinstance(doc, dict):
         raise TablesError(f"{p}: expected a JSON object with the tables {TABLE_NAMES}")
-    t = {name: _table(doc, name, p) for name in TABLE_NAMES}
+    t = {name: _table(doc, name, p) for name in TABLE_NAMES}  # type: ignore[arg-type]  # a Path or the package's resource: both read_text
     if not np.all(np.abs(t["signal"]) == 1):
         raise TablesError(f"{p}: signal must be +1 or -1 everywhere, got {t['signal'].tolist()}")
     bad = np.argwhere(t["lim_min"] > t["lim_max"])

@@ -12,7 +12,7 @@ zero velocity at both ends, ``theta(tau) = pos0 + (posF - pos0) (3 tau^2 - 2 tau
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -23,6 +23,9 @@ from humanoid_twin.host.motion import apply_joint, period_ticks, send_gains
 from humanoid_twin.host.planners import TICK_S, control_row
 from humanoid_twin.protocol.rs232 import PARAM_CURRENT, PARAM_POSITION, PARAM_VELOCITY
 from humanoid_twin.protocol.wire import ControlType, check_scu, int_in_range
+
+if TYPE_CHECKING:
+    from humanoid_twin.interfaces import HostPort
 
 __all__ = [
     "TEST_SCU",
@@ -97,7 +100,7 @@ def _three(name: str, v: Any) -> np.ndarray:
 
 
 def sample_traj3(
-    H: Any,
+    H: HostPort,
     T: float,
     pos0: Any,
     posF: Any,
@@ -154,7 +157,7 @@ def sample_traj3(
         vals = []
         for param in (PARAM_POSITION, PARAM_VELOCITY, PARAM_CURRENT):
             r = readjoint(H, s, param)
-            vals.append(list(r.servos) if r.error == ErrorCode.OK else [math.nan] * 3)
+            vals.append(list(r.servos) if r.error == ErrorCode.OK else [math.nan] * 3)  # type: ignore[arg-type]  # answered (error OK)
         rows.append([ts, *vals[0], *vals[1], *vals[2]])
         i += 1
         wait = min(t0 + i * dt, t_end) - timebase.now(H)
@@ -167,7 +170,7 @@ def sample_traj3(
 
 
 def sample_traj(
-    H: Any,
+    H: HostPort,
     T: float,
     pos0: float,
     posF: float,
@@ -192,7 +195,7 @@ def sample_traj(
         raise ValueError(f"k must be [KI, KP, KD], got {k!r}")
     r = readjoint(H, s, PARAM_POSITION)
     raise_for_error(r, f"sample_traj: read positions (SCU {s})")
-    hold = np.asarray(r.servos[1:], dtype=float)
+    hold = np.asarray(r.servos[1:], dtype=float)  # type: ignore[index]  # raise_for_error above
     p0 = np.concatenate([[float(pos0)], hold])
     pF = np.concatenate([[float(posF)], hold])
     arr3 = sample_traj3(H, T, p0, pF, np.tile(kk, (N_SERVOS, 1)), scu=s, Textra=Textra, settle=settle, dt=dt,

@@ -48,7 +48,7 @@ class MasterCan:
         # the schedule's look-ups, by address (0, the Master's, unused): the database's actuation
         # records; and by scu * 2 + index: the last actuation message (None: not requested yet),
         # its identifier
-        self._actuators: list[ScuActuation | None] = [db.actuators.get(k) for k in range(N_SCU + 1)]
+        self._actuators: list[ScuActuation] = [db.actuators.get(k) for k in range(N_SCU + 1)]  # type: ignore[misc]  # [0]: None, unread
         self._tx_msgs: list[Frame | None] = [None] * ((N_SCU + 1) * 2)
         self._tx_ids: list[int] = [ACTUATION_IDS[k][i] if k in ACTUATION_IDS else -1
                                    for k in range(N_SCU + 1) for i in (0, 1)]
@@ -58,7 +58,7 @@ class MasterCan:
         for k, ids in SENSOR_IDS.items():
             for ident in ids:
                 self._rx_sources[ident] = k
-        self._sensors: list[ScuSensors | None] = [db.sensors.get(k) for k in range(N_SCU + 1)]
+        self._sensors: list[ScuSensors] = [db.sensors.get(k) for k in range(N_SCU + 1)]  # type: ignore[misc]  # [0]: None, unread
 
     def canInit(self, on_rx: Callable[[Frame], None]) -> None:
         """``canInit`` (table 4): CAN peripheral with the Master's acceptance filters (slide 23:

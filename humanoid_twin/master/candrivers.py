@@ -16,6 +16,8 @@ from humanoid_twin.protocol.canframes import PIC_RX_BUFFERS, PIC_TX_BUFFERS, pac
 if TYPE_CHECKING:
     from collections.abc import Callable
 
+    from can.typechecking import CanFilters
+
     from humanoid_twin.bus.frames import Frame
     from humanoid_twin.bus.network import CanController, CanNetwork
 
@@ -30,12 +32,12 @@ class CanDrivers:
     def __init__(self, network: CanNetwork, name: str) -> None:
         self.network = network
         self.name = name
-        self.controller: CanController | None = None
+        self.controller: CanController = None  # type: ignore[assignment]  # set by canInit (attach)
         self.rxb: list[Frame | None] = [None] * PIC_RX_BUFFERS  # RXB0, RXB1 (full = not None)
         self.txb: list[Frame | None] = [None] * PIC_TX_BUFFERS  # last message requested per TXBn
         self.rx_overflows = 0
 
-    def myCANInitialize(self, can_filters: list[dict], on_rx: Callable[[Frame], None]) -> CanController:
+    def myCANInitialize(self, can_filters: CanFilters, on_rx: Callable[[Frame], None]) -> CanController:
         """``myCANInitialize`` (table 5): configuration mode, bit timing, masks/filters, normal mode.
 
         In the twin: attach the node to the network with ``can_filters`` (slide 23) and ``on_rx``

@@ -86,6 +86,21 @@ class MasterCounters:
                  "serial_frames_answered", "serial_frames_rejected", "serial_frames_broken",
                  "serial_frames_invalid", "can_tx_requests", "can_tx_refused", "can_tx_aborts",
                  "can_rx_frames", "can_rx_rejected", "can_clear_status", "rounds")
+    # the slots' types, for the type checker (set to 0 by __init__; database.pxd declares them)
+    serial_bytes_received: int
+    serial_bytes_discarded: int
+    serial_frames_received: int
+    serial_frames_answered: int
+    serial_frames_rejected: int
+    serial_frames_broken: int
+    serial_frames_invalid: int
+    can_tx_requests: int
+    can_tx_refused: int
+    can_tx_aborts: int
+    can_rx_frames: int
+    can_rx_rejected: int
+    can_clear_status: int
+    rounds: int
 
     def __init__(self) -> None:
         for name in self.__slots__:

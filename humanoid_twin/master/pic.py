@@ -36,8 +36,7 @@ from humanoid_twin.cycles import DEFAULT_PIC_MHZ, MASTER, check_pic_mhz, cycles_
 from humanoid_twin.protocol.wire import N_SCU
 
 if TYPE_CHECKING:
-    import can
-
+    from humanoid_twin.bus.frames import Frame
     from humanoid_twin.clock import Clock
     from humanoid_twin.master.can import MasterCan
     from humanoid_twin.master.database import Database
@@ -95,7 +94,7 @@ class Pic:
         self.isr_cycles += _C_USART
         self.usart.rx_byte(byte)
 
-    def isr_can_rx(self, msg: can.Message) -> None:
+    def isr_can_rx(self, msg: Frame) -> None:
         """``isr``, CAN RX interrupt (RXB0IF/RXB1IF, slide 30): a sensor packet into the database."""
         self.isr_cycles += _C_CAN_RX
         self.can.drivers.rx_interrupt(msg)

@@ -30,7 +30,7 @@ SERVO_SIGN: dict[str, int] = {
     for joint in joints
 }
 SERVO_SIGN_BY_SCU: dict[int, tuple[int, int, int]] = {
-    scu: tuple(SERVO_SIGN[j] for j in joints)  # type: ignore[misc]
+    scu: tuple(SERVO_SIGN[j] for j in joints)  # type: ignore[misc]  # 3 servos
     for scu, joints in hardware.SERVO_JOINTS.items()
 }
 

@@ -78,10 +78,10 @@ class Drawing:
                 name=name,
                 body=m.body(m.geom_bodyid[g]).name,
                 type=_GEOM_TYPES.get(int(m.geom_type[g]), str(int(m.geom_type[g]))),
-                size=tuple(float(x) for x in m.geom_size[g]),  # type: ignore[arg-type]
-                pos=tuple(float(x) for x in m.geom_pos[g]),  # type: ignore[arg-type]
+                size=tuple(float(x) for x in m.geom_size[g]),  # type: ignore[arg-type]  # MuJoCo's 3-vectors
+                pos=tuple(float(x) for x in m.geom_pos[g]),  # type: ignore[arg-type]  # as above
                 quat_xyzw=(float(q[1]), float(q[2]), float(q[3]), float(q[0])),
-                rgba=tuple(float(x) for x in rgba),  # type: ignore[arg-type]
+                rgba=tuple(float(x) for x in rgba),  # type: ignore[arg-type]  # 4 values
                 group=int(m.geom_group[g]),
             ))
         return out

@@ -75,7 +75,7 @@ class TrunkImu:
         """The four 8-bit ADC counts (``hardware.IMU_SENSOR_NAMES`` order) at physics time ``t_us``."""
         x = self.true_attitude()
         if self._bias is not None:
-            x = tuple(v + b for v, b in zip(x, self._bias, strict=True))
+            x = tuple(v + b for v, b in zip(x, self._bias, strict=True))  # type: ignore[assignment]  # four values
         s = self._state
         if s is None:
             s = self._state = list(x)

@@ -24,7 +24,7 @@ from collections.abc import Callable, Iterator, Mapping, Sequence
 from functools import partial
 from importlib import resources
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import mujoco
 import numpy as np
@@ -38,6 +38,9 @@ from humanoid_twin.plant.imu import TrunkImu
 from humanoid_twin.plant.sensors import BoardIO, PlantError, PlantInputError, SensorFrontEnd, _check_scu  # noqa: F401 (re-exported)
 from humanoid_twin.plant.truth import FOOT_BODIES, GroundTruth, TruthProbe
 from humanoid_twin.protocol.wire import N_SCU, POS_LIMIT_DEG
+
+if TYPE_CHECKING:
+    from humanoid_twin.clock import Clock
 
 # The model ships inside the package (MuJoCo Menagerie / dm_control style) and is read with
 # importlib.resources, so `pip install .` (a wheel), `pip install -e .` and a source tree all load
@@ -182,7 +185,7 @@ class Plant(BoardIO):
     non-default ones.
     """
 
-    def __init__(self, model_path: str | Path | None = None, *, seed: int = 0, clock: Any = None,
+    def __init__(self, model_path: str | Path | None = None, *, seed: int = 0, clock: Clock | None = None,
                  params: Mapping[str, float] | None = None) -> None:
         _route_mujoco_warnings()
         given = Path(model_path) if model_path is not None else None
@@ -198,7 +201,7 @@ class Plant(BoardIO):
         if self.timestep_us <= 0 or abs(ts_us - self.timestep_us) > 1e-6:
             raise PlantError(f"{path}: timestep {m.opt.timestep} s is not a whole number of microseconds")
         self.t_us: int = 0
-        self._clock: Any = clock
+        self._clock: Clock | None = clock
         self.step_ns_total = 0      # wall time spent in mj_step (boards subtract it from their task time)
 
         need = partial(_need, m, path)
@@ -273,9 +276,9 @@ class Plant(BoardIO):
             need(mujoco.mjtObj.mjOBJ_BODY, foot)
             self._sole_site[foot] = need(mujoco.mjtObj.mjOBJ_SITE, f"{foot}_sole")
             adrs = []
-            for p, suffix in enumerate(PAD_SUFFIXES):
+            for p, suffix in enumerate(PAD_SUFFIXES):  # type: ignore[assignment]  # g: a Param, then a geom id
                 g = need(mujoco.mjtObj.mjOBJ_GEOM, f"{foot}_pad_{suffix}")
-                self._pad_of_geom[g] = (f, p)
+                self._pad_of_geom[g] = (f, p)  # type: ignore[assignment]  # as above
                 s = need(mujoco.mjtObj.mjOBJ_SENSOR, f"{foot}_{suffix}_touch")
                 adrs.append(int(m.sensor_adr[s]))
             self._touch_adr[foot] = tuple(adrs)  # type: ignore[assignment]
@@ -302,7 +305,7 @@ class Plant(BoardIO):
         pot_offsets = by_kind.get("pot.offset_deg", {})     # pot.JOINT.offset_deg: added to the draw
         if pot_offsets:
             for scu, joints in hardware.SERVO_JOINTS.items():
-                self.pot_b_true_deg[scu] = tuple(  # type: ignore[assignment]
+                self.pot_b_true_deg[scu] = tuple(  # type: ignore[assignment]  # 3 servos
                     b + pot_offsets.get(j, 0.0)
                     for b, j in zip(self.pot_b_true_deg[scu], joints, strict=True))
         gains, zeros = by_kind.get("fsr.gain", {}), by_kind.get("fsr.offset_counts", {})
@@ -337,7 +340,7 @@ class Plant(BoardIO):
             self._imu.reset()
         mujoco.mj_forward(m, self.data)
 
-    def bind_clock(self, clock: Any) -> None:
+    def bind_clock(self, clock: Clock | None) -> None:
         """Put physics time under ``clock`` (anything with ``now_us``): from now on every read or
         write of the plant first runs the physics due up to ``clock.now_us``, in this one place.
 
@@ -358,7 +361,7 @@ class Plant(BoardIO):
         while k > 0:
             g = self.t_us - self.t_us % grid
             if self._tilt_grid_us != g:
-                self._apply_tilt(self._tilt_profile(g / US_PER_S))
+                self._apply_tilt(self._tilt_profile(g / US_PER_S))  # type: ignore[misc]  # set with the profile
                 self._tilt_grid_us = g
             n = min(k, max(1, -(-(g + grid - self.t_us) // ts)))
             mujoco.mj_step(self.model, self.data, nstep=n)
@@ -424,7 +427,7 @@ class Plant(BoardIO):
         ctrl = self.data.ctrl
         powered = self._powered
         stuck = self._stuck_actuators
-        for (_, _, a, sign, _, _), p in zip(rows, pulses_us, strict=True):  # type: ignore[arg-type]
+        for (_, _, a, sign, _, _), p in zip(rows, pulses_us, strict=True):  # type: ignore[arg-type]  # the servo table's rows
             if stuck and a in stuck:
                 continue
             if p is None:
@@ -572,7 +575,7 @@ class Plant(BoardIO):
         self._sync()
         key = (self.t_us, self._tilt_deg, self._epoch, self._qpos.tobytes(), self._qvel.tobytes())
         if self._truth_key == key:
-            return self._truth_cached
+            return self._truth_cached  # type: ignore[has-type]  # set with _truth_key
         self._truth_cached = self._truth.compute(self.t_us, self._tilt_deg)
         self._truth_key = key
         return self._truth_cached

@@ -57,6 +57,11 @@ class GroundTruth:
     __slots__ = ("t_s", "_s", "_names", "_plain", "_arrays", "_com_joints")
 
     t_s: float
+    _s: TruthSample
+    _names: list[str]
+    _plain: PlainTruth | None                                   # made on first read
+    _arrays: tuple | None
+    _com_joints: tuple[np.ndarray, dict[str, float]] | None
 
     def __init__(self, t_s: float, sample: TruthSample, joint_names: list[str]) -> None:
         init = object.__setattr__
@@ -98,7 +103,7 @@ class GroundTruth:
     @property
     def soles_on_surface_mm(self) -> tuple[tuple[float, float, float], tuple[float, float, float]]:
         """Each foot's sole origin on the platform (``Plant.soles_on_surface_mm`` at this instant)."""
-        return self._s.soles_mm
+        return self._s.soles_mm  # type: ignore[return-value]  # two feet
 
     def plain(self) -> PlainTruth:
         """The per-foot forces and CoPs, the overall CoP and the polygon as plain Python values."""

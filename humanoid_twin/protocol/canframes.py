@@ -44,6 +44,7 @@ except ImportError:         # interpreted, Cython not installed
     _COMPILED = False
 
 if TYPE_CHECKING:  # cantools is imported lazily by load_dbc (it is slow to import)
+    import can.typechecking
     import cantools.database
 
 __all__ = [
@@ -175,7 +176,7 @@ SENSOR_IDS: dict[int, tuple[int, int]] = {
 }
 
 
-def master_filters() -> list[dict]:
+def master_filters() -> list[can.typechecking.CanFilter]:
     """python-can ``can_filters`` of the Master (slide 23): ``[RXB0, RXB1]``.
 
     RXB0 ``0bxxxx00000xx`` (to the Master, index 0), RXB1 ``0bxxxx00001xx`` (index 1), both with
@@ -185,7 +186,7 @@ def master_filters() -> list[dict]:
             for i in (0, 1)]
 
 
-def slave_filters() -> list[dict]:
+def slave_filters() -> list[can.typechecking.CanFilter]:
     """python-can ``can_filters`` of a Slave (slide 23): ``[RXB0, RXB1]``.
 
     RXB0 ``0b0000xxxx0xx`` (from the Master, index 0), RXB1 ``0b0000xxxx1xx`` (index 1), both
@@ -681,4 +682,4 @@ def load_dbc() -> cantools.database.Database:
     import cantools
 
     text = files(__package__).joinpath(DBC_RESOURCE).read_text(encoding="utf-8")
-    return cantools.database.load_string(text, database_format="dbc")
+    return cantools.database.load_string(text, database_format="dbc")  # type: ignore[return-value]  # a .dbc loads as a CAN database

@@ -63,7 +63,7 @@ JOINT_KEY_TEXT = ("Each plot: one joint, degrees (servo frame). **grey** referen
 
 
 def _plot(name: str, origin: str, *, legend: bool = True, y_range: tuple[float, float] | None = None,
-          **kw: object) -> rrb.TimeSeriesView:
+          **kw: Any) -> rrb.TimeSeriesView:
     axis = None if y_range is None else rrb.ScalarAxis(range=y_range)
     return rrb.TimeSeriesView(name=name, origin=origin, plot_legend=_LEGEND if legend else _NO_LEGEND,
                               axis_y=axis, **kw)
@@ -84,7 +84,7 @@ def _joint_grid(scus: Sequence[int], name: str) -> rrb.Vertical:
     return rrb.Vertical(key, rrb.Grid(*views, grid_columns=2), row_shares=[1, 6 * rows], name=name)
 
 
-def log_keys(rec: Any) -> None:
+def log_keys(rec: rr.RecordingStream) -> None:
     """The static texts the blueprint shows (the joint tabs' colour key), into recording ``rec``."""
     rec.log(JOINT_KEY, rr.TextDocument(JOINT_KEY_TEXT, media_type=rr.MediaType.MARKDOWN), static=True)
 
@@ -105,12 +105,12 @@ def params_markdown(params: Mapping[str, float]) -> str:
     return "\n".join(lines) + "\n"
 
 
-def log_params(rec: Any, params: Mapping[str, float]) -> None:
+def log_params(rec: rr.RecordingStream, params: Mapping[str, float]) -> None:
     """The run's non-default parameters into recording ``rec``: a recording property ``params``
     (name -> value; rerun's recording properties) and the Parameters tab's static text."""
     from humanoid_twin.params import params_digest
 
-    rec.send_property(PARAMS, rr.AnyValues(**{name: float(v) for name, v in params.items()},
+    rec.send_property(PARAMS, rr.AnyValues(**{name: float(v) for name, v in params.items()},  # type: ignore[arg-type]  # rerun's **kwargs of any value
                                            params_digest=params_digest(params)))
     rec.log(PARAMS, rr.TextDocument(params_markdown(params), media_type=rr.MediaType.MARKDOWN), static=True)
 

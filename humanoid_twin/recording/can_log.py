@@ -33,6 +33,8 @@ from humanoid_twin.protocol import canframes
 if TYPE_CHECKING:
     import cantools.database
 
+    from humanoid_twin.bus.network import CanNetwork
+
 __all__ = [
     "CanLog",
     "CanLogError",
@@ -139,7 +141,7 @@ class CanLog:
     twin's clock started).
     """
 
-    def __init__(self, path: str | pathlib.Path, network: Any, name: str | None = None,
+    def __init__(self, path: str | pathlib.Path, network: CanNetwork, name: str | None = None,
                  params: Mapping[str, float] | None = None) -> None:
         self.path = pathlib.Path(path)
         suffix = check_log_path(self.path)
@@ -294,7 +296,7 @@ class DecodedFrame(NamedTuple):
     arbitration_id: int
     src: int                    # source address (0 = Master, 1..8 = SCU)
     dst: int                    # destination address
-    index: int                  # packet index 0/1
+    index: int  # type: ignore[assignment]  # packet index 0/1 (the field, not tuple.index)
     op: int                     # 0 actuation (Master -> Slave), 1 sensors (Slave -> Master)
     name: str                   # DBC message name, e.g. "Actuation1_S3"
     signals: dict[str, Any]     # DBC signal values
@@ -318,5 +320,5 @@ def decode_can_log(
         src, dst, index, op = canframes.split_id(msg.arbitration_id)
         yield DecodedFrame(
             msg.timestamp, msg.arbitration_id, src, dst, index, op, m.name,
-            m.decode(bytes(msg.data), decode_choices=False),
+            m.decode(bytes(msg.data), decode_choices=False),  # type: ignore[arg-type]  # a single-frame message decodes to a dict
         )

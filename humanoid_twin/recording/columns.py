@@ -26,7 +26,7 @@ import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from operator import itemgetter
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -50,6 +50,11 @@ from humanoid_twin.recording.paths import (
     scu_path,
     servo_path,
 )
+
+if TYPE_CHECKING:
+    from humanoid_twin.plant.truth import GroundTruth
+    from humanoid_twin.slave.slave import Slave
+    from humanoid_twin.twin import Twin
 
 __all__ = ["Column", "ColumnGroup", "Tick", "twin_columns", "RGB"]
 
@@ -186,7 +191,7 @@ def _prev_state(t: Tick, group: ColumnGroup) -> Any:
     prev = t.prev
     if prev is None or group not in prev.raw:
         return None
-    _, state = group.finish(np.array([prev.now_us], dtype=np.int64),
+    _, state = group.finish(np.array([prev.now_us], dtype=np.int64),  # type: ignore[misc]  # a batch group has finish
                             np.array([prev.raw[group]], dtype=np.float64), None)
     return state
 
@@ -236,11 +241,11 @@ class Tick:
     __slots__ = ("twin", "now_us", "dt_us", "truth", "per_s", "prev", "raw", "_signs", "_true", "_vel",
                  "_dicts")
 
-    def __init__(self, twin: Any) -> None:
+    def __init__(self, twin: Twin) -> None:
         self.twin = twin
         self.now_us = twin.clock.now_us
         self.dt_us = 0
-        self.truth: Any = None
+        self.truth: GroundTruth = None  # type: ignore[assignment]  # sampled by start_tick, before any read
         self.per_s = 0.0
         self.prev: Tick | None = None
         self.raw: dict[ColumnGroup, Sequence[float]] = {}
@@ -314,7 +319,7 @@ class _Boards:
         self._layout: tuple | None = None
         self._out: list[tuple[int, int]] = []      # each board's first output column and its task's
 
-    def add_board(self, scu: int, slave: Any) -> None:
+    def add_board(self, scu: int, slave: Slave) -> None:
         """Board ``scu``'s servos and task time (its columns: the servos' position, velocity and
         current, then the task time's two)."""
         joints = SERVO_JOINTS[scu]
@@ -405,14 +410,14 @@ class _Boards:
         out[:, task_dst + 1] = PWM_PERIOD_US / 1000.0     # its budget
         return out, (t[-1], true[-1].copy())
 
-    def seal(self, truth: Any) -> None:
+    def seal(self, truth: GroundTruth) -> None:
         """The joints' reader, once every board is added, keyed by the names of ``truth``'s own
         joint table (the same keys, found by identity)."""
         keys = {k: k for k in truth.joint_angles_deg}
         self.joints = itemgetter(*[keys.get(j, j) for j in self.joint_names])
 
 
-def _board_columns(scu: int, slave: Any, rows: _Boards, group: ColumnGroup) -> list[Column]:
+def _board_columns(scu: int, slave: Slave, rows: _Boards, group: ColumnGroup) -> list[Column]:
     """The columns of board ``scu``, its every-sample ones added to the boards' batch group
     ``group`` (of ``rows``)."""
     base = scu_path(scu)
@@ -449,7 +454,7 @@ def _board_columns(scu: int, slave: Any, rows: _Boards, group: ColumnGroup) -> l
         if slave.cop_loaded:
             fx, fy = slave.cop_x, slave.cop_y
         else:
-            fx = fy = _NAN
+            fx = fy = _NAN  # type: ignore[assignment]  # NaN when unloaded
         c = truth.foot_cop_mm[f]
         tx, ty = (_NAN, _NAN) if c is None else c
         return [*slave.sensors.special, *truth.pad_forces_n[4 * f:4 * f + 4], fx, tx, fy, ty]
@@ -464,7 +469,7 @@ def _board_columns(scu: int, slave: Any, rows: _Boards, group: ColumnGroup) -> l
     return cols + group.columns[first:]
 
 
-def _imu_columns(base: str, slave: Any, group: ColumnGroup, rows: _Boards) -> list[Column]:
+def _imu_columns(base: str, slave: Slave, group: ColumnGroup, rows: _Boards) -> list[Column]:
     """The body board's inclinometer and gyroscope (its sensor database, decoded) beside the
     trunk's true attitude and rates (docs/firmware.md, "Trunk inertial sensors"): read with the
     board's servos (``group``)."""
@@ -504,7 +509,7 @@ class _BusRates:
 
     raw_width = 2
 
-    def __init__(self, twin: Any) -> None:
+    def __init__(self, twin: Twin) -> None:
         self.net = twin.network
 
     def read(self, t: Tick) -> Sequence[float]:
@@ -530,9 +535,9 @@ class _BusRates:
         return out, state
 
 
-def _bus_columns(twin: Any) -> list[Column]:
+def _bus_columns(twin: Twin) -> list[Column]:
     net = twin.network
-    ctl = twin.master.controller
+    ctl = twin.master.controller  # type: ignore[union-attr]  # a recorded twin has its Master
     link = twin.link
     bus = _BusRates(twin)
     rates = ColumnGroup(bus.read, finish=bus.finish, raw_width=bus.raw_width, ints=bus.raw_width)
@@ -551,10 +556,10 @@ def _bus_columns(twin: Any) -> list[Column]:
     ]
 
 
-def master_groups(twin: Any) -> list[tuple[str, list[str]]]:
+def master_groups(twin: Twin) -> list[tuple[str, list[str]]]:
     """The ``master/...`` entities and the numeric ``Master.stats()`` keys each plots."""
     groups: list[tuple[str, list[str]]] = []
-    for k, v in twin.master.stats().items():
+    for k, v in twin.master.stats().items():  # type: ignore[union-attr]  # as above
         if isinstance(v, bool) or not isinstance(v, (int, float)):
             continue
         group = next((g for g in _MASTER_GROUPS if k.startswith(g)), k)
@@ -568,12 +573,12 @@ def master_groups(twin: Any) -> list[tuple[str, list[str]]]:
     return groups
 
 
-def _master_columns(twin: Any, groups: list[tuple[str, list[str]]]) -> list[Column]:
+def _master_columns(twin: Twin, groups: list[tuple[str, list[str]]]) -> list[Column]:
     master = twin.master
     keys = [k for _, ks in groups for k in ks]
 
     def stats(t: Tick) -> Sequence[float]:          # one Master.stats() per row for all its columns
-        st = master.stats()
+        st = master.stats()  # type: ignore[union-attr]  # as above
         return [st.get(k, _NAN) for k in keys]
 
     group = ColumnGroup(stats, every=COUNTER_EVERY)
@@ -582,7 +587,7 @@ def _master_columns(twin: Any, groups: list[tuple[str, list[str]]]) -> list[Colu
             for path, ks in groups]
 
 
-def twin_columns(twin: Any, scus: Sequence[int]) -> list[Column]:
+def twin_columns(twin: Twin, scus: Sequence[int]) -> list[Column]:
     """The recording's column table for ``twin`` (boards ``scus``), in recording order."""
     cols: list[Column] = []
     rows = _Boards()
@@ -598,7 +603,7 @@ def twin_columns(twin: Any, scus: Sequence[int]) -> list[Column]:
     return cols
 
 
-def servo_signs(twin: Any, scus: Sequence[int]) -> list[tuple[tuple[int, int], str, int]]:
+def servo_signs(twin: Twin, scus: Sequence[int]) -> list[tuple[tuple[int, int], str, int]]:
     """((scu, servo), joint, sign) for every recorded servo: the true shaft angle in the servo
     frame is ``sign * truth.joint_angles_deg[joint]`` (checked against the plant's own
     ``servo_angle_deg`` here, once)."""
@@ -619,7 +624,7 @@ def servo_keys(scus: Sequence[int]) -> list[tuple[int, int]]:
     return [(scu, i) for scu in scus for i in range(N_SERVOS)]
 
 
-def start_tick(twin: Any, prev: Tick | None, signs: Sequence[tuple[tuple[int, int], str, int]]) -> Tick:
+def start_tick(twin: Twin, prev: Tick | None, signs: Sequence[tuple[tuple[int, int], str, int]]) -> Tick:
     """The shared state of a sample taken now (``prev``: the previous sample's, for rates)."""
     t = Tick(twin)
     t.truth = twin.plant.truth()

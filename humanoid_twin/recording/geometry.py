@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterable, Sequence
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import rerun as rr
@@ -14,6 +14,9 @@ import rerun as rr
 from humanoid_twin.hardware import FOOT_LENGTH_MM, FOOT_WIDTH_MM, FORCE_SENSOR_LABELS, FORCE_SENSOR_XY_MM
 from humanoid_twin.recording.columns import GREEN, ORANGE, SENSOR_COLOURS
 from humanoid_twin.recording.paths import BODIES, WORLD, foot_view_path
+
+if TYPE_CHECKING:
+    from humanoid_twin.plant.plant import Plant
 
 __all__ = ["log_static", "log_geometry", "log_foot_static", "view_xy", "SENSOR_LABELS"]
 
@@ -24,7 +27,8 @@ SENSOR_LABEL_GAP_MM = 16.0
 _FLOOR_HALF_M = 1.5
 
 
-def log_static(rec: Any, plant: Any, body_names: Sequence[str], foot_scus: Iterable[int]) -> None:
+def log_static(rec: rr.RecordingStream, plant: Plant, body_names: Sequence[str],
+               foot_scus: Iterable[int]) -> None:
     """Everything static: world axes (z up), geometry, foot views."""
     rec.log(WORLD, rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
     log_geometry(rec, plant, body_names)
@@ -32,7 +36,7 @@ def log_static(rec: Any, plant: Any, body_names: Sequence[str], foot_scus: Itera
         log_foot_static(rec, scu)
 
 
-def log_foot_static(rec: Any, scu: int) -> None:
+def log_foot_static(rec: rr.RecordingStream, scu: int) -> None:
     """Foot outline and sensors in the 2D foot view (mm; drawn with forward up)."""
     v = foot_view_path(scu)
     hl, hw = FOOT_LENGTH_MM / 2, FOOT_WIDTH_MM / 2
@@ -56,7 +60,7 @@ def log_foot_static(rec: Any, scu: int) -> None:
                                        labels=["CoP firmware", "CoP truth"], show_labels=True), static=True)
 
 
-def log_geometry(rec: Any, plant: Any, body_names: Sequence[str]) -> None:
+def log_geometry(rec: rr.RecordingStream, plant: Plant, body_names: Sequence[str]) -> None:
     """Static shapes: one entity per body under world/bodies, shapes in the body frame; the
     world body's planes as the floor."""
     per_body: dict[str, dict[str, list]] = {}

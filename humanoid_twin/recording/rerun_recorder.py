@@ -37,7 +37,7 @@ import time
 import uuid
 from collections.abc import Iterable, Sequence
 from itertools import chain
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pyarrow as pa
@@ -68,6 +68,10 @@ from humanoid_twin.recording.columns import (
 )
 from humanoid_twin.recording.geometry import log_static
 from humanoid_twin.recording.paths import BODIES, SUPERVISOR, WORLD, foot_view_path, scu_path
+
+if TYPE_CHECKING:
+    from humanoid_twin.plant.truth import GroundTruth
+    from humanoid_twin.twin import Twin
 
 __all__ = ["Recorder", "RecorderError", "TIMELINE", "Column", "compact_for", "SHORT_RECORDING_S"]
 
@@ -199,7 +203,7 @@ class Recorder:
     def __init__(
         self,
         path: str | pathlib.Path | None,
-        twin: Any,
+        twin: Twin,
         period_us: int = PWM_PERIOD_US,
         app_id: str = "humanoid_twin",
         *,
@@ -355,7 +359,7 @@ class Recorder:
         self._poses = plant.body_pose_views()
         if not all(v.dtype == np.float64 and v.flags.c_contiguous for v in self._poses):
             raise RecorderError("the plant's body pose views are not contiguous float64: cannot record them")
-        self._pose_src = tuple(memoryview(v).cast("B").cast("d") for v in self._poses)
+        self._pose_src = tuple(memoryview(v).cast("B").cast("d") for v in self._poses)  # type: ignore[arg-type]  # an array is a buffer
         self._platform = self._body_names.index("platform") if "platform" in self._body_names else None
 
     def _runs_due(self, k: int) -> list[tuple[list, struct.Struct, int, int]]:
@@ -395,14 +399,14 @@ class Recorder:
     def _alloc(self) -> None:
         rows, nb = self._rows, len(self._body_names)
         self._t = np.zeros(rows, dtype=np.int64)
-        self._t_items = memoryview(self._t)
+        self._t_items = memoryview(self._t)  # type: ignore[arg-type]  # numpy arrays are buffers
         self._k0 = 0          # the sample number of the buffer's first row (then one more a row)
         self._buf = np.zeros((rows, self._nbuf), dtype=np.float64)
-        self._buf_bytes = memoryview(self._buf).cast("B")        # the rows, packed in place
+        self._buf_bytes = memoryview(self._buf).cast("B")  # type: ignore[arg-type]  # the rows, packed in place (an array is a buffer)
         self._pos = np.zeros((rows, nb, 3), dtype=np.float64)
         self._quat = np.zeros((rows, nb, 4), dtype=np.float64)  # MuJoCo's order (w, x, y, z)
         # flat views of them, one row a slice
-        self._pose_dst = tuple(memoryview(a).cast("B").cast("d") for a in (self._pos, self._quat))
+        self._pose_dst = tuple(memoryview(a).cast("B").cast("d") for a in (self._pos, self._quat))  # type: ignore[arg-type]  # as above
         self._pose_len = (nb * 3, nb * 4)
         self._com: list[Sequence[float]] = [()] * rows      # each row's CoM (x y z)
         self._cop: list[Sequence[float] | None] = [None] * rows    # its CoP (x y), None airborne
@@ -419,7 +423,7 @@ class Recorder:
         for c in self.columns:
             key: tuple | None = (c.names, c.colors)
             try:
-                style = styles.get(key)
+                style = styles.get(key)  # type: ignore[arg-type]  # None is a key too
             except TypeError:       # a user's column given lists (unhashable): an archetype of its own
                 key = style = None
             if style is None:
@@ -470,7 +474,7 @@ class Recorder:
         pos, quat = self._pose_dst
         npos, nquat = self._pose_len
         pos[i * npos:(i + 1) * npos], quat[i * nquat:(i + 1) * nquat] = self._pose_src
-        self._com[i] = truth.com
+        self._com[i] = truth.com  # type: ignore[call-overload]  # an array of 3
         plain = truth.plain()
         self._cop[i] = plain.cop_world_xy
         self._poly[i] = plain.support_polygon_xy
@@ -494,7 +498,7 @@ class Recorder:
         rec.log(f"{SUPERVISOR}/events", rr.TextLog(str(text), level=level))
         rec.reset_time()
 
-    def _log_fell(self, t_us: int, truth: Any) -> None:
+    def _log_fell(self, t_us: int, truth: GroundTruth) -> None:
         """The robot's fall as an event (once a recording): when, and how it lies."""
         self._fell_logged = True
         tilt, height_mm = truth.trunk_tilt_deg, truth.trunk_height_m * 1000
@@ -503,7 +507,7 @@ class Recorder:
     def _on_supervisor(self, kind: str, t_us: int, value: Any) -> None:
         """The Master supervisor's listener: every mode change and fault as an event."""
         if kind == "mode":
-            sup = self.twin.master.supervisor
+            sup = self.twin.master.supervisor  # type: ignore[union-attr]  # a recorded twin has its Master
             self.log_event(t_us, f"mode -> {sup.mode_name}", "WARN" if sup.mode_name in ("safe", "estop")
                            else "INFO")
         elif kind == "fault":
@@ -595,7 +599,7 @@ class Recorder:
             if not len(range(n)[rows]):
                 continue
             raw = buf[rows, b0:b0 + group.raw_width]
-            out, state = group.finish(t[rows], raw, self._batch_state.get(group))
+            out, state = group.finish(t[rows], raw, self._batch_state.get(group))  # type: ignore[misc]  # a batch group has finish
             vals[f0:f0 + group.width, rows] = out.T
             self._batch_state[group] = state
         return vals
@@ -748,7 +752,7 @@ class Recorder:
 
         w1 = time.perf_counter()
         try:
-            self.size_before_compaction, _ = compact_rrd(self.path, should_stop=stop)
+            self.size_before_compaction, _ = compact_rrd(self.path, should_stop=stop)  # type: ignore[arg-type]  # a file recording
         except (RrdReadError, OSError) as exc:
             self.compaction_error = " ".join(str(exc).split())[:300]
         self.compact_s = time.perf_counter() - w1
@@ -785,7 +789,7 @@ class Recorder:
         return f"Recorder({str(self.path)!r}, {state}, samples={self.samples}, chunks={self.chunks_sent})"
 
 
-def _supervisor_columns(twin: Any) -> list[Column]:
+def _supervisor_columns(twin: Twin) -> list[Column]:
     """``supervisor/mode``: the Master supervisor's mode number and faults latched (when the
     twin's Master has a supervisor, docs/supervisor.md)."""
     sup = getattr(twin.master, "supervisor", None)

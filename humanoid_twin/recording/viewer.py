@@ -137,7 +137,7 @@ def live_url(addr: str) -> str:
         infos = socket.getaddrinfo(host, port, 0, socket.SOCK_STREAM)
     except (socket.gaierror, UnicodeError) as exc:
         raise ViewerError(f"--connect {addr}: not an address or a known host name ({exc})") from None
-    if not all(ipaddress.ip_address(info[4][0].split("%")[0]).is_loopback for info in infos):
+    if not all(ipaddress.ip_address(info[4][0].split("%")[0]).is_loopback for info in infos):  # type: ignore[union-attr]  # an IP family's address is a str
         raise ViewerError(f"--connect {addr}: not a loopback address; the live recording is only sent "
                           f"to a viewer on this machine (e.g. {DEFAULT_CONNECT})")
     answers = _viewer_answers(host, port)

@@ -22,7 +22,7 @@ bytes, as the PIC did from its global database (slide 31).
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 from humanoid_twin.cycles import SLAVE
 from humanoid_twin.hardware import PWM_BUSY_US, PWM_PERIOD_US
@@ -44,7 +44,10 @@ from humanoid_twin.protocol.wire import STATUS_DEADLINE, ErrorState, node_name
 from humanoid_twin.slave.database import Global
 
 if TYPE_CHECKING:
+    from collections.abc import Callable
+
     from humanoid_twin.bus.frames import Frame
+    from humanoid_twin.bus.network import CanController, CanNetwork
     from humanoid_twin.clock import Clock
 
 __all__ = ["ISR_LATENCY_US", "SlaveCan"]
@@ -98,7 +101,7 @@ class SlaveCan:
         self.clock = clock
         self.db = db
         self.phase_us = phase_us
-        self.controller: Any = None
+        self.controller: CanController = None  # type: ignore[assignment]  # set by initCan
         self.node_name = node_name(address)
         self._sensor_ids = SENSOR_IDS[address]
         # the two actuation identifiers addressed to this board -> packet index (the network's
@@ -128,13 +131,13 @@ class SlaveCan:
         self.watchdog = False
         self.law_stopped = False      # a control law was stopped (Sensors 2 SFlags bit 2)
         self.bus_off_seen = False
-        self.on_stop: Any = None
+        self.on_stop: Callable[[], None] | None = None
         # cycles the receive interrupt took since the main loop last asked (take_isr_cycles)
         self.isr_cycles = 0
         self._skipped_seen = 0
         self.prepareSensorPackets()
 
-    def initCan(self, network: Any) -> None:
+    def initCan(self, network: CanNetwork) -> None:
         """``initCan`` (table 18): the CAN peripheral on the network, slide 23 mask/filters,
         receive interrupt = :meth:`lowISR`. The frames that interrupt acts on, this board's two
         actuation identifiers, are named to the network (``rx_ids``): every other frame the mask
@@ -203,9 +206,9 @@ class SlaveCan:
         f = self._rx_fields
         try:
             if index == 0:
-                unpack_actuation1_into(data, f)
+                unpack_actuation1_into(data, f)  # type: ignore[arg-type]  # the frame's bytes (a bytearray is read alike)
             else:
-                unpack_actuation2_into(data, f)
+                unpack_actuation2_into(data, f)  # type: ignore[arg-type]  # as above
         except PayloadError:
             self.rx_errors += 1
             return False

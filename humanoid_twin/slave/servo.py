@@ -30,7 +30,7 @@ Fixed-point scales (docs/firmware.md, "SERVO"; docs/balance.md): every gain is t
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from humanoid_twin.containment import describe, law_output, user_fault
 from humanoid_twin.cycles import law_cycles
@@ -53,6 +53,9 @@ from humanoid_twin.slave.laws import (
     balance_gain_bytes,
 )
 from humanoid_twin.slave.pic2 import limitPosition
+
+if TYPE_CHECKING:
+    from humanoid_twin.clock import Clock
 
 __all__ = [
     "NO_CONTROL",
@@ -251,7 +254,7 @@ class ServoControl:
     )
 
     def __init__(self, actuators: Actuators, has_foot: bool, signs: Sequence[int] = (1, 1, 1),
-                 scu: int = 0, clock: Any = None) -> None:
+                 scu: int = 0, clock: Clock | None = None) -> None:
         self.actuators = actuators
         self.has_foot = has_foot
         self.signs: tuple[int, int, int] = (int(signs[0]), int(signs[1]), int(signs[2]))

@@ -24,7 +24,7 @@ Tick order (docs/firmware.md, "Slave"), at the start of each PWM period:
 from __future__ import annotations
 
 import time
-from typing import Any
+from typing import TYPE_CHECKING
 
 from humanoid_twin.clock import Clock
 from humanoid_twin.cycles import DEFAULT_PIC_MHZ, SLAVE, check_pic_mhz, cycles_to_us, instructions_per_s
@@ -36,6 +36,10 @@ from humanoid_twin.slave.database import Global
 from humanoid_twin.slave.pic2 import Pic2
 from humanoid_twin.slave.servo import LOCOMOTION_CONTROL, Calibration, ServoControl
 from humanoid_twin.slave.trajectory import Trajectory
+
+if TYPE_CHECKING:
+    from humanoid_twin.bus.network import CanNetwork
+    from humanoid_twin.plant.plant import Plant
 
 __all__ = ["LEG_SIGNS", "MOTION_FIN_TOL_DEG", "MOTION_FIN_STILL_TICKS", "WATCHDOG_TICKS", "Slave"]
 
@@ -81,7 +85,7 @@ class Slave:
     """
 
     def __init__(
-        self, address: int, clock: Clock, plant: Any, network: Any, *, phase_us: int,
+        self, address: int, clock: Clock, plant: Plant, network: CanNetwork, *, phase_us: int,
         pic_mhz: float = DEFAULT_PIC_MHZ,
     ) -> None:
         address = check_scu(address, "Slave address (an SCU address)")

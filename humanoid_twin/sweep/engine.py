@@ -12,11 +12,14 @@ import time
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, TextIO
+from typing import TYPE_CHECKING, Any, TextIO
 
 from humanoid_twin import signals
 from humanoid_twin.sweep.params import flag, run_arg
 from humanoid_twin.sweep.table import SweepError, cells, read_table, table_format, write_table
+
+if TYPE_CHECKING:
+    from tqdm import tqdm
 
 BACKENDS = ("local", "ray")
 DEFAULT_TIMEOUT_S = 900.0
@@ -273,7 +276,7 @@ class Progress:
     done: int = 0
     failed: int = 0
     _t0: float = field(default_factory=time.perf_counter)
-    _bar: Any = None
+    _bar: tqdm[Any] | None = None
     _next_pct: int = 10
 
     def __post_init__(self) -> None:
@@ -307,13 +310,13 @@ class Progress:
 
 def _local(task: Task, points: list[Point], jobs: int) -> Iterable[dict[str, Any]]:
     """One process per run, ``jobs`` at a time; a worker that dies is its run's error."""
-    from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+    from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
     from concurrent.futures.process import BrokenProcessPool
 
     todo = list(reversed(points))
     while todo:
         with ProcessPoolExecutor(max_workers=jobs) as pool:
-            running = {}
+            running: dict[Future[dict[str, Any]], Point] = {}
             broken = False
             while (todo or running) and not broken:
                 while todo and len(running) < jobs:
