@@ -46,10 +46,10 @@ from humanoid_twin.monitor import CONTROLLERS_START_S, Monitor
 from humanoid_twin.twin import Twin
 
 if TYPE_CHECKING:
-    from humanoid_twin.bus.serial_log import SerialLog
     from humanoid_twin.interfaces import HostPort
     from humanoid_twin.recording.can_log import CanLog
     from humanoid_twin.recording.rerun_recorder import Recorder
+    from humanoid_twin.recording.serial_log import SerialLog
 
 __all__ = ["Rig", "RigOptions", "ScenarioError", "BootError", "boot", "tilt_profile", "BOOT_TIMEOUT_S",
            "TILT_RATE_DEG_S", "PROGRESS_PERIOD_US"]

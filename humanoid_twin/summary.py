@@ -31,7 +31,7 @@ def build_summary(rig: Rig, scenario: str, plan: Plan, *, completed: bool, wall_
     """The summary of the run ``scenario`` (its name as the user gave it) on ``rig``, whose plan
     was ``plan``: every key of :data:`SUMMARY_KEYS` that applies, in that order."""
     twin, opts = rig.twin, rig.opts
-    sup = twin.master.supervisor
+    sup = twin.master.supervisor  # type: ignore[union-attr]  # a run's twin has its Master
     summary: dict[str, Any] = {
         "scenario": scenario,
         "duration_s": round(twin.now_s, 6),

@@ -219,7 +219,7 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
                          window=max(1, round(args.smooth * 1e6 / ROUND_US)))
     result = fit(problem, validate=validate, jobs=jobs, backend=args.backend,
                  max_evaluations=args.max_evaluations, scan=args.scan,
-                 progress=lambda text: sys.stderr.write(text + "\n"))
+                 progress=lambda text: print(text, file=sys.stderr))
     d = result.as_dict()
     header = (f"humanoid-twin calibrate: {', '.join(str(p) for p in args.logs)} (seed {args.seed}, "
               f"support {args.support})\nresidual {d['residual_before']:.4f} -> {d['residual_after']:.4f} "

@@ -108,7 +108,7 @@ def _check_remote(host: str, allow: bool) -> None:
 
     try:
         infos = socket.getaddrinfo(host, None, 0, socket.SOCK_STREAM, 0, socket.AI_PASSIVE)
-        addrs = {info[4][0] for info in infos}
+        addrs = {str(info[4][0]) for info in infos}
     except (socket.gaierror, UnicodeError) as exc:
         raise usage_error(f"--host {host}: not an address or a known host name ({exc})") from None
     remote = [a for a in addrs if not ipaddress.ip_address(a.split("%")[0]).is_loopback]

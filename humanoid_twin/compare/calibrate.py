@@ -97,7 +97,7 @@ class FitProblem:
     window: int = 1          # frames each signal's residual is averaged over (--smooth)
     phases: str = "log"      # the Slaves' phases (CompareOptions.phases)
 
-    def values(self, x: Sequence[float]) -> dict[str, float]:
+    def values(self, x: Sequence[float] | np.ndarray) -> dict[str, float]:
         """The parameters of point ``x``: the fixed ones, then each unknown's names."""
         out = dict(self.base)
         for u, v in zip(self.unknowns, x, strict=True):
@@ -105,11 +105,12 @@ class FitProblem:
                 out[name] = float(v)
         return out
 
-    def run(self, x: Sequence[float], logs: Sequence[RobotLog] | None = None) -> list[CompareResult]:
+    def run(self, x: Sequence[float] | np.ndarray,
+            logs: Sequence[RobotLog] | None = None) -> list[CompareResult]:
         opts = CompareOptions(seed=self.seed, support=self.support, params=self.values(x), phases=self.phases)
         return [compare_log(log, opts) for log in (self.logs if logs is None else logs)]
 
-    def residual(self, x: Sequence[float]) -> np.ndarray:
+    def residual(self, x: Sequence[float] | np.ndarray) -> np.ndarray:
         """The stacked residual of every log at ``x`` (quanta)."""
         return np.concatenate([r.residual_vector(self.groups, self.window) for r in self.run(x)])
 
@@ -195,7 +196,7 @@ class _RayWorker:
         self.problem = problem
 
     def residual(self, x: np.ndarray) -> np.ndarray:
-        return self.problem.residual(x)  # type: ignore[arg-type]  # as above
+        return self.problem.residual(x)
 
 
 def _steps(unknowns: Sequence[Unknown], x: np.ndarray) -> np.ndarray:
@@ -420,9 +421,9 @@ def fit(problem: FitProblem, *, validate: Sequence[RobotLog] = (), jobs: int = 1
     # the unidentified keep their start: the after-fit residual is that of the values written
     if any(not e["identifiable"] for e in fitted.values()):
         x_written = np.array([e["value"] for e in fitted.values()])
-        after = problem.run(x_written)  # type: ignore[arg-type]  # as above
+        after = problem.run(x_written)
     val_before = problem.run(x0, validate) if validate else []
-    val_after = problem.run(np.array([e["value"] for e in fitted.values()]), validate) if validate else []  # type: ignore[arg-type]  # as above
+    val_after = problem.run(np.array([e["value"] for e in fitted.values()]), validate) if validate else []
     g, w = problem.groups, problem.window
     return FitResult(fitted=fitted, values=values, residual_before=_norm(before, g, w),
                      residual_after=_norm(after, g, w),

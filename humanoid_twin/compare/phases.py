@@ -45,7 +45,7 @@ def answered_packets(log: RobotLog) -> dict[int, tuple[np.ndarray, np.ndarray]]:
             continue
         key = SENSORS_OF.get(f.arbitration_id)
         i = pending.pop(key, None) if key is not None else None
-        if i is not None:
+        if key is not None and i is not None:
             answered[key[0]][i] = True
     return {scu: (np.asarray(times[scu], dtype=np.int64), np.asarray(answered[scu], dtype=bool))
             for scu in times}

@@ -235,7 +235,7 @@ class Plant(BoardIO):
         self._force_fault_rng = np.random.default_rng(ss.spawn(1)[0])
         # the body board's inclinometer and gyroscope, with their biases (imu.*_bias_*)
         bias = tuple(by_kind.get(f"imu.{b}", {}).get("", 0.0) for b in _IMU_BIASES)
-        self._imu = TrunkImu(m, ss.spawn(1)[0], self._sense, bias=bias if any(bias) else None)
+        self._imu = TrunkImu(m, ss.spawn(1)[0], self._sense, bias=bias if any(bias) else None)  # type: ignore[arg-type]  # four biases
         self._force_stuck: dict[int, list[int] | None] = {}
         self._stuck_actuators: set[int] = set()
         self.reset()
@@ -276,9 +276,9 @@ class Plant(BoardIO):
             need(mujoco.mjtObj.mjOBJ_BODY, foot)
             self._sole_site[foot] = need(mujoco.mjtObj.mjOBJ_SITE, f"{foot}_sole")
             adrs = []
-            for p, suffix in enumerate(PAD_SUFFIXES):  # type: ignore[assignment]  # g: a Param, then a geom id
+            for p, suffix in enumerate(PAD_SUFFIXES):
                 g = need(mujoco.mjtObj.mjOBJ_GEOM, f"{foot}_pad_{suffix}")
-                self._pad_of_geom[g] = (f, p)  # type: ignore[assignment]  # as above
+                self._pad_of_geom[g] = (f, p)
                 s = need(mujoco.mjtObj.mjOBJ_SENSOR, f"{foot}_{suffix}_touch")
                 adrs.append(int(m.sensor_adr[s]))
             self._touch_adr[foot] = tuple(adrs)  # type: ignore[assignment]

@@ -292,7 +292,7 @@ def _tabs(scus: Sequence[int], feet: Sequence[int], master_entities: Sequence[st
     if upper:
         tabs.append(_joint_grid(upper, "Upper body"))
     if params:
-        tabs.append(rrb.TextDocumentView(origin=PARAMS, name="Parameters"))
+        tabs.append(rrb.TextDocumentView(origin=PARAMS, name="Parameters"))  # type: ignore[arg-type]  # a view is a tab too
     return tabs
 
 

@@ -359,7 +359,7 @@ class Recorder:
         self._poses = plant.body_pose_views()
         if not all(v.dtype == np.float64 and v.flags.c_contiguous for v in self._poses):
             raise RecorderError("the plant's body pose views are not contiguous float64: cannot record them")
-        self._pose_src = tuple(memoryview(v).cast("B").cast("d") for v in self._poses)  # type: ignore[arg-type]  # an array is a buffer
+        self._pose_src = tuple(memoryview(v).cast("B").cast("d") for v in self._poses)
         self._platform = self._body_names.index("platform") if "platform" in self._body_names else None
 
     def _runs_due(self, k: int) -> list[tuple[list, struct.Struct, int, int]]:

@@ -205,7 +205,7 @@ def _settings(text: str) -> tuple[int, int, str, int] | None:
     words = text.split(";")[0].split()
     if len(words) != 2 or not words[0].isdigit() or len(words[1]) != 3:
         return None
-    size, parity, stop = words[1]
+    size, parity, stop = tuple(words[1])
     if not size.isdigit() or not stop.isdigit():
         return None
     return int(words[0]), int(size), parity, int(stop)

@@ -134,7 +134,7 @@ class RunCli:
     def summary(self, returncode: int, stdout: str, stderr: str) -> dict[str, Any]:
         """The ``run --json`` summary of a finished run; RuntimeError (its row's error) otherwise."""
         # exit 0: done; exit 3: the supervisor ended the run in a safe state, a result like any other
-        summary = _last_json(stdout) if returncode in (0, 3) else _NO_JSON
+        summary: Any = _last_json(stdout) if returncode in (0, 3) else _NO_JSON
         if summary is not _NO_JSON:
             if self.label is not None and isinstance(summary, dict) and "scenario" in summary:
                 summary["scenario"] = self.label
@@ -429,7 +429,7 @@ def run_sweep(points: Sequence[Point], task: Task, out: Path, *, jobs: int | Non
         if todo:
             index = {p.key(): p.index for p in todo}
             for row in _start(task, todo, jobs, backend, address):
-                table.add(index[row_key(row, names)], row)
+                table.add(index[row_key(row, names)], row)  # type: ignore[index]  # a row's key
                 bar.update(row)
         elif not out.exists():
             table.write()

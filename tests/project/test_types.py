@@ -13,11 +13,9 @@ import importlib.util
 import re
 import subprocess
 import sys
-from pathlib import Path
 
 import pytest
-
-ROOT = Path(__file__).resolve().parents[1]
+from helpers import REPO as ROOT
 
 pytestmark = pytest.mark.slow       # over a minute cold on a busy 2-core machine: `-m "not slow"` skips it
 
