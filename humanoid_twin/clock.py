@@ -78,9 +78,31 @@ class Clock:
     @property
     def pending(self) -> int:
         """Events scheduled and not run yet (a periodic event counts once)."""
-        return self._n if _COMPILED else len(self._queue)
+        return self._n + len(self._queue)      # one layout holds the events, the other is empty
 
-    # -- the heap ---------------------------------------------------------------------------
+    # -- the heap: the only methods that know its layout (the class doc) ---------------------
+    def _first_due(self) -> int:
+        """The due time of the earliest pending event, -1 when none is pending."""
+        if _COMPILED:
+            return self._t[0] if self._n else -1
+        queue = self._queue
+        return queue[0][0] if queue else -1
+
+    def _run_first(self) -> None:
+        """Take the earliest event off the queue and run it at its due time; a periodic one is
+        pushed again, with a new sequence number, after its callback returns."""
+        if _COMPILED:
+            t = self._t[0]
+            period = self._p[0]
+            cb = self._cb[0]
+            self._pop()
+        else:
+            t, _, period, cb = _heappop(self._queue)
+        self.now_us = t
+        cb()  # type: ignore[misc]  # a pending event's callback (None only in free slots)
+        if period:
+            self._push(t + period, period, cb)  # type: ignore[arg-type]  # as above
+
     def _grow(self) -> None:
         cap = 2 * len(self._cb)
         t, s, p = _zeros(cap), _zeros(cap), _zeros(cap)
@@ -122,7 +144,8 @@ class Clock:
         return 0
 
     def _pop(self) -> None:
-        """Remove the earliest event, entry 0 (the last entry sifts down from the top)."""
+        """Remove the earliest event, entry 0 (the last entry sifts down from the top); the
+        array layout only."""
         self._n = n = self._n - 1
         T = self._t
         S = self._s
@@ -184,11 +207,7 @@ class Clock:
     def schedule_fast(self, t_us: int, callback: Callback) -> None:
         """:meth:`schedule` without the past check, for a hot path that knows ``t_us >= now_us``
         (the CAN wire's frame events)."""
-        if _COMPILED:
-            self._push(t_us, 0, callback)
-        else:                      # _push, inlined (a Python call less per frame)
-            self._seq = seq = self._seq + 1
-            _heappush(self._queue, (t_us, seq, 0, callback))
+        self._push(t_us, 0, callback)
 
     def next_due_us(self) -> int | None:
         """Virtual time of the earliest pending event (None when nothing is scheduled).
@@ -196,19 +215,15 @@ class Clock:
         The CAN wire's fast path: a decision that would be taken at ``t`` can be taken now when
         nothing is due before ``t`` (no event can run, and so no frame can be requested, in
         between)."""
-        if _COMPILED:
-            return self._t[0] if self._n else None
-        queue = self._queue
-        return queue[0][0] if queue else None
+        due = self._first_due()
+        return due if due >= 0 else None
 
     def due_by(self, t_us: int) -> bool:
         """Whether an event is due at or before ``t_us`` (``next_due_us() <= t_us``, False when
         nothing is scheduled): the question the wire's and the boards' fast paths ask, typed
         for compiled callers (``cpdef bint``)."""
-        if _COMPILED:
-            return self._n > 0 and self._t[0] <= t_us
-        queue = self._queue
-        return bool(queue) and queue[0][0] <= t_us
+        due = self._first_due()
+        return 0 <= due <= t_us
 
     def skip_to(self, t_us: int) -> bool:
         """Inside an event, move ``now_us`` on to ``t_us`` when that changes nothing: no event is
@@ -217,13 +232,9 @@ class Clock:
         Returns False, and moves nothing, otherwise."""
         if t_us > self._until or t_us < self.now_us:
             return False
-        if _COMPILED:
-            if self._n > 0 and self._t[0] <= t_us:
-                return False
-        else:
-            queue = self._queue
-            if queue and queue[0][0] <= t_us:
-                return False
+        due = self._first_due()
+        if 0 <= due <= t_us:
+            return False
         self.now_us = t_us
         return True
 
@@ -232,30 +243,13 @@ class Clock:
         n = 0
         outer = self._until
         self._until = t_us if t_us < outer or outer < 0 else outer
-        queue = self._queue
         try:
             while True:
-                # the earliest event due by t_us, taken off the queue (its layout: the class doc)
-                if _COMPILED:
-                    if self._n == 0 or self._t[0] > t_us:
-                        break
-                    t = self._t[0]
-                    period = self._p[0]
-                    cb = self._cb[0]
-                    self._pop()
-                else:
-                    if not queue or queue[0][0] > t_us:
-                        break
-                    t, _, period, cb = _heappop(queue)
-                self.now_us = t
-                cb()  # type: ignore[misc]  # a pending event's callback (None only in free slots)
+                due = self._first_due()
+                if due < 0 or due > t_us:
+                    break
+                self._run_first()
                 n += 1
-                if period:
-                    if _COMPILED:
-                        self._push(t + period, period, cb)  # type: ignore[arg-type]  # as above
-                    else:               # _push, inlined (a Python call less per periodic event)
-                        self._seq = seq = self._seq + 1
-                        _heappush(queue, (t + period, seq, period, cb))  # type: ignore[misc]  # the interpreted heap's tuple
         finally:
             self._until = outer
         self.events_run += n

@@ -70,8 +70,10 @@ CORE_MODULES: dict[str, str] = {
         "the integer sine and cosine of the leg's Jacobian (the balance law, every tick)",
     "humanoid_twin.slave.pic2":
         "PWM, servo measures and filters, every tick",
+    "humanoid_twin.plant.stepping":
+        "the physics kept up with the clock: the steps due before each board's read, every tick",
     "humanoid_twin.plant.sensors":
-        "the boards' ADC reads on MuJoCo's arrays and the physics sync before each, every tick",
+        "the boards' ADC reads on MuJoCo's arrays (after the physics sync), every tick",
     "humanoid_twin.plant.contacts":
         "the ground truth's arithmetic, every monitor sample (20 ms) and foot-CoP comparison",
 }

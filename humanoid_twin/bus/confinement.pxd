@@ -6,10 +6,10 @@ from humanoid_twin.clock cimport Clock
 cdef class ErrorConfinement:
     cdef public Clock clock
     cdef public long long bitrate
-    cdef public list _nodes
-    cdef public list _recovering
-    cdef public bint _rec_dirty
-    cdef public long long _dom_end
+    cdef list _nodes
+    cdef list _recovering
+    cdef bint _rec_dirty
+    cdef long long _dom_end
 
     # the nodes are typed object here (CanController is declared in network.pxd, which
     # cimports this file): these run on errors and recoveries only, not per frame

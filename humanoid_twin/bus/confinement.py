@@ -2,7 +2,7 @@
 slides 25-27, docs/buses.md): transmit/receive error counters, error-active -> error-passive ->
 bus-off, and the bus-off recovery after 128 sequences of 11 recessive bits.
 
-``ErrorConfinement`` is the part of :class:`humanoid_twin.bus.network.CanNetwork` that keeps
+``ErrorConfinement`` is the part of the wire, ``CanNetwork`` (network.py), that keeps
 these counters (the root of the wire's one inheritance chain: ``ErrorConfinement`` <-
 ``ForeignPath`` <- ``CanNetwork``, one chain because the compiled core makes each an extension
 type, which has one base); the wire's timing and arbitration (``network.py``) calls it when a
@@ -12,15 +12,12 @@ board clears its status (``_clear_status``).
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from typing import Any, Protocol
 
 from humanoid_twin.bus.frames import TRAILING_RECESSIVE_BITS
 from humanoid_twin.bus.twin_bus import TwinBus
 from humanoid_twin.clock import US_PER_S
 from humanoid_twin.protocol.wire import ErrorState
-
-if TYPE_CHECKING:
-    from humanoid_twin.bus.network import CanController
 
 # a controller's ``state`` is the label of its protocol.wire.ErrorState (names and codes live there)
 ERROR_ACTIVE = ErrorState.ERROR_ACTIVE.label
@@ -33,6 +30,24 @@ BUS_OFF_LIMIT = 255             # TEC > 255 -> bus-off
 RECOVERY_SEQUENCES = 128        # 128 occurrences of 11 consecutive recessive bits
 
 
+class ConfinedNode(Protocol):
+    """A node's error-confinement record, what this module reads and sets of it: a
+    ``CanController`` of network.py, named by its fields here, so that this module, below the
+    wire's, imports nothing from it."""
+
+    bus: Any
+    tec: int
+    rec: int
+    state: str
+    recovering: bool
+    bus_off_count: int
+    recoveries: int
+    _off: bool                  # the state is BUS_OFF (a C flag for the wire's per-frame path)
+    _n_pending: int             # TX buffers in use
+    _rec_count: int             # bus-off recovery: 11-recessive-bit sequences counted ...
+    _rec_mark: int              # ... up to this instant
+
+
 class ErrorConfinement:
     """TEC/REC, error states and bus-off recovery of every node on one wire (the base of
     ``CanNetwork``, which sets the wire's clock, nodes, bit rate and last dominant instant
@@ -42,7 +57,7 @@ class ErrorConfinement:
     # pending frame of ctrl), used here
     __slots__ = ()
 
-    def _rx_success(self, sender: CanController) -> None:
+    def _rx_success(self, sender: ConfinedNode) -> None:
         dirty = False
         for c in self._nodes:
             if c is sender or c._off:
@@ -55,7 +70,7 @@ class ErrorConfinement:
                     dirty = True
         self._rec_dirty = dirty  # type: ignore[misc]  # a CanNetwork slot (this base has none)
 
-    def _update_state(self, c: CanController) -> None:
+    def _update_state(self, c: ConfinedNode) -> None:
         if c.state == BUS_OFF:
             return
         if c.tec > BUS_OFF_LIMIT:
@@ -73,7 +88,7 @@ class ErrorConfinement:
         else:
             c.state = ERROR_ACTIVE
 
-    def _clear_status(self, c: CanController) -> None:
+    def _clear_status(self, c: ConfinedNode) -> None:
         if c.state != BUS_OFF:
             c.tec = 0
             c.rec = 0
@@ -90,7 +105,7 @@ class ErrorConfinement:
     def _bits_in(self, us: int) -> int:
         return us * self.bitrate // US_PER_S
 
-    def _recovery_progress(self, c: CanController, t: int) -> int:
+    def _recovery_progress(self, c: ConfinedNode, t: int) -> int:
         """11-recessive-bit sequences seen by ``c`` up to ``t`` if the wire stayed idle."""
         begin = c._rec_mark if c._rec_mark > self._dom_end else self._dom_end
         if t <= begin:
@@ -105,7 +120,7 @@ class ErrorConfinement:
             if c._rec_count >= RECOVERY_SEQUENCES:
                 self._recovered(c)
 
-    def _schedule_recovery_check(self, c: CanController) -> None:
+    def _schedule_recovery_check(self, c: ConfinedNode) -> None:
         begin = max(c._rec_mark, self._dom_end, self.clock.now_us)
         need = RECOVERY_SEQUENCES - c._rec_count
         t = begin + self._dur(need * TRAILING_RECESSIVE_BITS)
@@ -121,12 +136,12 @@ class ErrorConfinement:
 
         self.clock.schedule(t, check)
 
-    def _mute(self, c: CanController, muted: bool) -> None:
+    def _mute(self, c: ConfinedNode, muted: bool) -> None:
         bus = c.bus
         if isinstance(bus, TwinBus):
             bus.set_muted(muted)
 
-    def _recovered(self, c: CanController) -> None:
+    def _recovered(self, c: ConfinedNode) -> None:
         c.recovering = False
         c._off = False
         self._mute(c, False)

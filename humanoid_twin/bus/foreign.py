@@ -11,7 +11,7 @@ their instants are the same as on the default ``humanoid_twin`` interface (tests
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from typing import Protocol
 
 import can
 
@@ -19,8 +19,16 @@ from humanoid_twin.bus.confinement import ErrorConfinement
 from humanoid_twin.bus.frames import Frame, as_message
 from humanoid_twin.clock import US_PER_S
 
-if TYPE_CHECKING:
-    from humanoid_twin.bus.network import CanController
+
+class ForeignNode(Protocol):
+    """What the foreign path uses of a node: a ``CanController`` of network.py, named by its
+    members here, so that this module, below the wire's, imports nothing from it."""
+
+    bus: can.BusABC
+
+    def accepts(self, arbitration_id: int) -> bool: ...
+
+    def receive_drained(self, msg: Frame) -> None: ...
 
 
 def open_foreign_bus(interface: str, channel: str,
@@ -40,7 +48,7 @@ class ForeignPath(ErrorConfinement):
 
     __slots__ = ()
 
-    def _send_and_drain(self, ctrl: CanController, msg: Frame | can.Message, t_us: int) -> None:
+    def _send_and_drain(self, ctrl: ForeignNode, msg: Frame | can.Message, t_us: int) -> None:
         """Another python-can interface: put the frame on the sender's bus (as a python-can
         message), drain the others."""
         ctrl.bus.send(as_message(msg))

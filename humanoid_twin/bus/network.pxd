@@ -44,18 +44,18 @@ cdef class CanController:
     cdef public long long bus_off_count
     cdef public long long recoveries
     # the wire's own fields (bus/network.py, confinement.py, foreign.py; nobody else)
-    cdef public CanNetwork _net
+    cdef CanNetwork _net
     cdef public object _on_rx
-    cdef public long long _tx_buffers
+    cdef long long _tx_buffers
     cdef public long long _n_pending
     cdef public bint _off
-    cdef public long long _suspend_until
+    cdef long long _suspend_until
     cdef public long long _rec_count
     cdef public long long _rec_mark
     cdef public object _filt
     cdef public bint _external
-    cdef public Frame _loaded
-    cdef public long long _loaded_bits
+    cdef Frame _loaded
+    cdef long long _loaded_bits
     cdef public RxPort _port
 
     cpdef bint send(self, object msg) except -1
@@ -78,47 +78,49 @@ cdef class _Request:
 
 
 cdef class CanNetwork(ForeignPath):
-    cdef public long long _bit_us
-    cdef public bint _twin
-    cdef public object _medium
-    cdef public dict _controllers
-    cdef public dict _external
-    cdef public list _listeners
-    cdef public list _pending
-    cdef public Py_ssize_t _n_req
-    cdef public list _spare
-    cdef public Py_ssize_t _n_spare
-    cdef public bint _busy
-    cdef public long long _start
-    cdef public _Request _current
-    cdef public bint _current_aborted
-    cdef public int _outcome
-    cdef public long long _idle_from
-    cdef public long long _seq
-    cdef public int _inline
-    cdef public bint _faults_on
-    cdef public double _drop_prob
-    cdef public double _corrupt_prob
-    cdef public object _rng
+    cdef long long _bit_us
+    cdef bint _twin
+    cdef object _medium
+    cdef dict _controllers
+    cdef dict _external
+    cdef list _listeners
+    cdef list _pending
+    cdef Py_ssize_t _n_req
+    cdef list _spare
+    cdef Py_ssize_t _n_spare
+    cdef bint _busy
+    cdef long long _start
+    cdef _Request _current
+    cdef bint _current_aborted
+    cdef int _outcome
+    cdef long long _idle_from
+    cdef long long _seq
+    cdef int _inline
+    cdef bint _faults_on
+    cdef double _drop_prob
+    cdef double _corrupt_prob
+    cdef object _rng
     cdef public long long frames_sent
     cdef public long long frames_dropped
     cdef public long long error_frames
     cdef public long long busy_us
-    cdef public bint _closed
-    cdef public object _decide_cb
-    cdef public object _complete_cb
-    cdef public object _error_cb
+    cdef bint _closed
+    cdef object _decide_cb
+    cdef object _complete_cb
+    cdef object _error_cb
 
     cpdef long long _dur(self, long long bits) except? -1
     @cython.locals(arb=cython.longlong, bits=cython.longlong, seq=cython.longlong,
-                   now=cython.longlong, idle=cython.longlong, start=cython.longlong, clock=Clock,
+                   now=cython.longlong, clock=Clock,
                    frame=Frame, n=Py_ssize_t, r=_Request)
     cpdef bint _request(self, CanController ctrl, object msg, long long at=*) except -1
+    # the wire's small steps, one copy each, inlined where they are called
     @cython.locals(n=Py_ssize_t)
-    cdef int _add(self, _Request r) except -1
+    cdef inline int _add(self, _Request r) except -1
     @cython.locals(n=Py_ssize_t)
-    cdef int _release(self, _Request r) except -1
-    cpdef _kick(self)
+    cdef inline int _release(self, _Request r) except -1
+    @cython.locals(idle=cython.longlong, start=cython.longlong)
+    cdef inline int _kick(self, long long now) except -1
     @cython.locals(e=_Request, c=CanController, key=cython.longlong, best_key=cython.longlong,
                    best=_Request, pending=list, k=Py_ssize_t)
     cpdef _Request _pick(self, long long start)
@@ -130,9 +132,9 @@ cdef class CanNetwork(ForeignPath):
                    i=Py_ssize_t, n=Py_ssize_t)
     cpdef _begin(self, _Request best, long long start)
     @cython.locals(cur=_Request, ctrl=CanController, frame=Frame, t=cython.longlong, pending=list,
-                   idle=cython.longlong, start=cython.longlong, clock=Clock, first=cython.longlong,
+                   idle=cython.longlong, start=cython.longlong, first=cython.longlong,
                    e=_Request, c=CanController, r=cython.longlong, sof=cython.longlong,
-                   best=_Request, k=Py_ssize_t, n=Py_ssize_t)
+                   best=_Request, k=Py_ssize_t)
     cpdef _complete(self)
     @cython.locals(e=_Request, ctrl=CanController, c=CanController)
     cpdef _error(self)

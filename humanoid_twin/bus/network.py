@@ -431,7 +431,7 @@ class CanNetwork(ForeignPath):
         c = self.node(node_name)
         c.silenced = bool(silent)
         if not silent and self._n_req and not self._busy:
-            self._kick()
+            self._kick(self.clock.now_us)
 
     def force_bus_off(self, node_name: str) -> None:
         """Put a node in bus-off at once (TEC past 255) until its ``clear_status()``."""
@@ -496,20 +496,10 @@ class CanNetwork(ForeignPath):
         r.ctrl = ctrl
         r.frame = frame
         r.bits = bits
-        n = self._n_req                 # _add, inlined (one call less a frame)
-        if n < len(self._pending):
-            self._pending[n] = r
-        else:
-            self._pending.append(r)
-        self._n_req = n + 1
+        self._add(r)
         ctrl._n_pending += 1
         if not self._busy:
-            # _kick, inlined (one call less per frame): arbitrate at the next SOF
-            idle = self._idle_from
-            start = now if now > idle else idle
-            self._busy = True
-            self._start = start
-            clock.schedule_fast(start + 1, self._decide_cb)
+            self._kick(now)
         return True
 
     @staticmethod
@@ -558,13 +548,14 @@ class CanNetwork(ForeignPath):
             self._spare.append(r)
         self._n_spare = n + 1
 
-    def _kick(self) -> None:
-        """The wire is (or will be) idle and frames are pending: arbitrate at the next SOF."""
-        now = self.clock.now_us
-        start = now if now > self._idle_from else self._idle_from
+    def _kick(self, now: int) -> None:
+        """The wire is (or will be) idle and frames are pending, the last requested at ``now``
+        (the clock's now or later, :meth:`CanController.send_at`): arbitrate at the next SOF."""
+        idle = self._idle_from
+        start = now if now > idle else idle
         self._busy = True
         self._start = start
-        self.clock.schedule(start + 1, self._decide_cb)
+        self.clock.schedule_fast(start + 1, self._decide_cb)
 
     def _pick(self, start: int) -> _Request | None:
         """The arbitration winner among the frames requested up to ``start`` (lowest ID)."""
@@ -601,10 +592,8 @@ class CanNetwork(ForeignPath):
                 if nxt is None or t < nxt:
                     nxt = t
             if nxt is not None:
-                self._busy = True
                 now = self.clock.now_us
-                self._start = max(nxt, now, self._idle_from)
-                self.clock.schedule(self._start + 1, self._decide_cb)
+                self._kick(nxt if nxt > now else now)
             return
         self._begin(best, start)
 
@@ -666,12 +655,7 @@ class CanNetwork(ForeignPath):
         ctrl = cur.ctrl
         frame = cur.frame
         self._current = None
-        n = self._n_spare               # done with the request: _release, inlined
-        if n < len(self._spare):
-            self._spare[n] = cur
-        else:
-            self._spare.append(cur)
-        self._n_spare = n + 1
+        self._release(cur)
         t = self.clock.now_us
         frame.timestamp = t / US_PER_S
         frame.channel = self.channel
@@ -697,16 +681,13 @@ class CanNetwork(ForeignPath):
             for lst in self._listeners:
                 lst.on_message_received(copy)
         if self._n_req:
-            # _kick, inlined: the wire is idle from the end of the intermission
+            # the wire is idle from the end of the intermission. The fast path: the SOF of the
+            # next frame is the first instant a pending frame may start; when nothing on the
+            # clock is due up to it, nothing can request (or abort) a frame before then, and
+            # the decision taken now is the one _decide would take there (the same winner, the
+            # same instants; one clock event less per frame). Otherwise _kick: decide at the SOF.
             idle = self._idle_from
             start = t if t > idle else idle
-            self._busy = True
-            self._start = start
-            clock = self.clock
-            # The fast path: the SOF of the next frame is the first instant a pending frame may
-            # start; when nothing on the clock is due up to it, nothing can request (or abort)
-            # a frame before then, and the decision taken now is the one _decide would take
-            # there (the same winner, the same instants; one clock event less per frame).
             first = -1                  # none (virtual times are >= 0)
             if not self._recovering:
                 pending = self._pending
@@ -723,14 +704,14 @@ class CanNetwork(ForeignPath):
                         first = r
             if first >= 0:
                 sof = first if first > start else start
-                if not clock.due_by(sof + 1):
-                    self._start = sof
+                if not self.clock.due_by(sof + 1):
                     best = self._pick(sof)
                     if best is not None:
+                        self._busy = True
+                        self._start = sof
                         self._begin(best, sof)
                         return
-                    self._start = start
-            clock.schedule_fast(start + 1, self._decide_cb)
+            self._kick(t)
         else:
             self._busy = False
 
@@ -767,7 +748,7 @@ class CanNetwork(ForeignPath):
             if ctrl.state == ERROR_PASSIVE:
                 ctrl._suspend_until = self._idle_from + self._dur(SUSPEND_BITS)
         if self._n_req:
-            self._kick()
+            self._kick(self.clock.now_us)
         else:
             self._busy = False
 

@@ -18,13 +18,13 @@ cdef class SerialLink:
     cdef public object parity
     cdef public long long stopbits
     cdef public long long bits_per_byte
-    cdef public long long _num
-    cdef public _Direction _to_dev
-    cdef public _Direction _to_host
-    cdef public object _device_rx
-    cdef public list _taps
-    cdef public double _noise_prob
-    cdef public object _rng
+    cdef long long _num
+    cdef _Direction _to_dev
+    cdef _Direction _to_host
+    cdef object _device_rx
+    cdef list _taps
+    cdef double _noise_prob
+    cdef object _rng
     cdef public long long bytes_to_device
     cdef public long long bytes_to_host
     cdef public long long bytes_corrupted

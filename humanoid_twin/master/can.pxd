@@ -24,7 +24,7 @@ cdef class MasterCan:
     cdef public Database db
     cdef public CanDrivers drivers
     cdef public list rejected
-    cdef public list _tx_msgs
+    cdef list _tx_msgs
     cdef list _tx_ids
     cdef list _actuators
     cdef list _rx_sources

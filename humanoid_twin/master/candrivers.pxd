@@ -19,8 +19,8 @@ cdef class CanDrivers:
     cpdef CanController myCANInitialize(self, list can_filters, object on_rx)
     cpdef CanController _ctl(self)
     @cython.locals(ctl=CanController)
+    cdef inline bint _send(self, Py_ssize_t index, object msg) except -1
     cpdef bint myCANSendMessage0(self, object msg)
-    @cython.locals(ctl=CanController)
     cpdef bint myCANSendMessage1(self, object msg)
     @cython.locals(ctl=CanController, txb=list)
     cpdef bint myCANAbort(self)

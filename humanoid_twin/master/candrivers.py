@@ -54,22 +54,21 @@ class CanDrivers:
             raise CanDriverError(f"CAN node {self.name!r}: myCANInitialize was not called")
         return ctl
 
-    def myCANSendMessage0(self, msg: Frame) -> bool:
-        """``myCANSendMessage0`` (table 5): send through TX buffer 0 (packet index 0)."""
-        # _send(0, msg), inlined: the Master's schedule calls this 2000 times a second
-        self.txb[0] = msg
+    def _send(self, index: int, msg: Frame) -> bool:
+        """Send ``msg`` through TX buffer ``index`` (the Master's schedule: 2000 times a second)."""
+        self.txb[index] = msg
         ctl = self.controller
         if ctl is None:
             ctl = self._ctl()
         return ctl.send(msg) is not False
 
+    def myCANSendMessage0(self, msg: Frame) -> bool:
+        """``myCANSendMessage0`` (table 5): send through TX buffer 0 (packet index 0)."""
+        return self._send(0, msg)
+
     def myCANSendMessage1(self, msg: Frame) -> bool:
         """``myCANSendMessage1`` (table 5): send through TX buffer 1 (packet index 1)."""
-        self.txb[1] = msg
-        ctl = self.controller
-        if ctl is None:
-            ctl = self._ctl()
-        return ctl.send(msg) is not False
+        return self._send(1, msg)
 
     def myCANAbort(self) -> bool:
         """Abort every pending transmission (TXABT, used by the Master's schedule, slide 27).

@@ -13,7 +13,7 @@ from typing import TYPE_CHECKING
 from humanoid_twin.cycles import DEFAULT_PIC_MHZ
 from humanoid_twin.master.can import MasterCan
 from humanoid_twin.master.database import Database
-from humanoid_twin.master.pic import Pic
+from humanoid_twin.master.pic import ROUND_US, Pic
 from humanoid_twin.master.supervisor import Supervisor, SupervisorConfig
 from humanoid_twin.master.usart import Usart
 
@@ -38,7 +38,7 @@ class Master:
         self.db = Database()
         self.can = MasterCan(clock, network, self.db)
         # the mode supervisor (docs/supervisor.md), beyond the seeds
-        self.supervisor = Supervisor(clock, self.db, self.can, supervisor)
+        self.supervisor = Supervisor(clock, self.db, self.can, ROUND_US, supervisor)
         self.usart = Usart(clock, link, self.db, self.can, self.supervisor)
         self.pic = Pic(clock, self.usart, self.can, self.db, self.supervisor, pic_mhz)
         self.main()

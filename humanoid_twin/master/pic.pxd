@@ -25,7 +25,7 @@ cdef class Pic:
     cdef public long long slot
     cdef public long long slave
     cdef public long long started_us
-    cdef public bint _round_open
+    cdef bint _round_open
     cdef public long long ips
     cdef public long long isr_cycles
     cdef public long long busy_until_us

@@ -181,23 +181,20 @@ Listener = Callable[[str, int, Any], None]
 
 
 class Supervisor:
-    """The Master's mode supervisor: ``Supervisor(clock, db, can, config)``.
+    """The Master's mode supervisor: ``Supervisor(clock, db, can, round_us, config)``, ``round_us``
+    the length of the Master's CAN round (``ROUND_US`` of pic.py: the Master wires the two).
 
     ``mode`` (wire number), ``faults`` (every fault detected, in order; the first since the last
     reset is the latched one), ``listeners``: callables ``(kind, t_us, value)`` told of every
     ``"mode"`` change (value: the new mode) and ``"fault"`` (value: the :class:`Fault`).
     """
 
-    def __init__(self, clock: Clock, db: Database, can: MasterCan,
+    def __init__(self, clock: Clock, db: Database, can: MasterCan, round_us: int,
                  config: SupervisorConfig | None = None) -> None:
-        # ROUND_US here, not at the top: the compiled pic.py types its supervisor as this class,
-        # so this module must not import pic.py while it loads
-        from humanoid_twin.master.pic import ROUND_US
-
         self.clock = clock
         self.db = db
         self.can = can
-        self._round_us = ROUND_US
+        self._round_us = round_us
         self.config = config or SupervisorConfig()
         self.mode = STANDBY
         self.faults: list[Fault] = []

@@ -2,6 +2,8 @@
 # compiled. MjData's arrays as C memoryviews, taken once; the arithmetic on C doubles.
 cimport cython
 
+from humanoid_twin.plant.stepping cimport PhysicsTime
+
 cdef bint _COMPILED
 cdef double _DEG
 cdef double _COUNTS
@@ -40,15 +42,9 @@ cdef class SensorFrontEnd:
 cdef long _IMU_SCU
 cdef long _NOISE_BLOCK
 
-cdef class BoardIO:
-    # set by Plant (plant/plant.py), which documents them; C fields so a board's read stays in C
-    cdef public long long t_us
-    cdef public long long timestep_us
-    cdef public long long step_ns_total
-    cdef public object _clock
-    cdef public object model
-    cdef public object data
-    cdef public object _tilt_profile
+cdef class BoardIO(PhysicsTime):
+    # set by Plant (plant/plant.py, interpreted: so they are public), which documents them; C
+    # fields so a board's read stays in C
     cdef public object _imu
     cdef public SensorFrontEnd _sense
     cdef public dict _servo
@@ -59,10 +55,6 @@ cdef class BoardIO:
     cdef public list _force_noise
     cdef public bint _force_fault
 
-    @cython.locals(now=cython.longlong)
-    cpdef _sync(self)
-    @cython.locals(due=cython.longlong, k=cython.longlong, w0=cython.longlong)
-    cpdef advance_to(self, t_us)
     @cython.locals(noise=list)
     cpdef tuple read_servos(self, scu)
     @cython.locals(noise=list, out=list)

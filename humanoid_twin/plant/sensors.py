@@ -1,6 +1,6 @@
 """The Slave boards' sensor electronics on the plant's state: servo potentiometers, current sense
 and foot force sensors as the boards' ADCs read them (PIC2 ``updateServoMeasures`` and
-``sampleExtraSensors`` inputs), and the plant's physics time kept up with the twin's clock.
+``sampleExtraSensors`` inputs).
 
 Part of the compiled core (sensors.pxd). :class:`SensorFrontEnd` does the per-tick arithmetic on
 MuJoCo's arrays through C memoryviews instead of one numpy scalar per value: the plant hands over
@@ -8,22 +8,20 @@ its ``qpos``, ``qvel``, ``actuator_force`` and ``sensordata`` arrays once, and t
 MjData's for the plant's whole life. (Interpreted, each value read is turned into a Python
 float at once, as the plant did before: numpy scalars are slower and would leak into results.)
 :class:`BoardIO` is the base class of :class:`~humanoid_twin.plant.plant.Plant`: what the boards
-call every tick (``read_servos``, ``read_force_adc``, ``read_imu_adc``) and the physics sync
-before each of them (``advance_to``), so a board's read is one C call into the plant. The models
-are documented on those methods; the rest of the plant is Python (plant/plant.py).
+call every tick (``read_servos``, ``read_force_adc``, ``read_imu_adc``), each after the physics
+sync of its own base class (plant/stepping.py), so a board's read is one C call into the plant.
+The models are documented on those methods; the rest of the plant is Python (plant/plant.py).
 """
 
 from __future__ import annotations
 
 import math
-import time
 from array import array
 from typing import Any
 
-import mujoco
-
 from humanoid_twin import hardware
 from humanoid_twin.plant import constants as C  # noqa: N812
+from humanoid_twin.plant.stepping import PhysicsTime, PlantError, PlantInputError
 from humanoid_twin.protocol.wire import check_scu
 
 try:        # Cython's pure-Python mode: True in the compiled core (as in humanoid_twin/clock.py)
@@ -44,14 +42,6 @@ _CURRENT_IDLE_US = C.CURRENT_IDLE_US
 _FORCE_ADC_MAX = hardware.FORCE_ADC_MAX
 _IMU_SCU = hardware.IMU_SCU
 _NOISE_BLOCK = 8192                 # standard noise draws taken from a stream at a time
-
-
-class PlantError(Exception):
-    """The model cannot be loaded or does not match what the boards expect."""
-
-
-class PlantInputError(PlantError, ValueError):
-    """A caller passed an invalid argument (SCU address, pulse width, tilt, ...)."""
 
 
 def _check_scu(scu: int) -> None:
@@ -160,42 +150,12 @@ class SensorFrontEnd:
         return roll, pitch, float(sd[gyro_adr]) * _DEG, float(sd[gyro_adr + 1]) * _DEG
 
 
-class BoardIO:
+class BoardIO(PhysicsTime):
     """The plant's part the boards call every tick, compiled: the base class of
     :class:`~humanoid_twin.plant.plant.Plant`, which sets every attribute (the MuJoCo model and
     data, the front end, the per-SCU tables, the noise streams) and documents the models.
 
-    Physics time ``t_us`` follows the clock bound to the plant: each read first runs the physics
-    due up to the clock's now (``_sync``), in this one place."""
-
-    def _sync(self) -> None:
-        """Run the physics due up to the bound clock's now (nothing without a clock)."""
-        c = self._clock
-        if c is not None:
-            now = c.now_us
-            if now - self.t_us >= self.timestep_us:
-                self.advance_to(now)
-
-    def advance_to(self, t_us: int) -> None:
-        """Run the physics steps due up to ``t_us`` (never past it) in one ``mj_step`` call.
-
-        The platform tilt profile, if any, is evaluated on a fixed 10 ms grid of physics time
-        (the tilt of ``[g, g + 10 ms)`` is ``fn(g)``), so where the callers split the stepping
-        (a recorder, a monitor) does not change the physics.
-        """
-        due = t_us - self.t_us
-        if due < 0:
-            raise PlantInputError(f"cannot advance the plant backwards: {t_us} us < {self.t_us} us")
-        k = due // self.timestep_us
-        if k <= 0:
-            return
-        w0 = time.perf_counter_ns()
-        if self._tilt_profile is None:
-            mujoco.mj_step(self.model, self.data, nstep=k)
-            self.t_us += k * self.timestep_us
-        else:
-            self._advance_with_profile(k)
-        self.step_ns_total += time.perf_counter_ns() - w0
+    Each read first runs the physics due up to the clock's now (``PhysicsTime._sync``)."""
 
     def read_servos(self, scu: int) -> tuple[list[int], list[int]]:
         """Potentiometer ADC counts and current pulse widths (us) of the three servos of ``scu``.

@@ -44,17 +44,17 @@ cdef class SlaveCan:
     cdef public object node_name
     cdef public list payload
     cdef public bint calib_request
-    cdef public tuple _sensor_ids
-    cdef public dict _rx_index
-    cdef public long _rx_id1
-    cdef public long _rx_id2
+    cdef tuple _sensor_ids
+    cdef dict _rx_index
+    cdef long _rx_id1
+    cdef long _rx_id2
     cdef ActuationFields _rx_fields
-    cdef public list _tx_msgs
-    cdef public object _isr_send_cb
-    cdef public long _tx_index
-    cdef public long long _tx_due_us
+    cdef list _tx_msgs
+    cdef object _isr_send_cb
+    cdef long _tx_index
+    cdef long long _tx_due_us
     cdef public long long rx_packets
-    cdef public long long _rx_ignored
+    cdef long long _rx_ignored
     cdef public long long rx_errors
     cdef public long long tx_packets
     cdef public long long tx_silent

@@ -43,8 +43,8 @@ cdef class Pic2:
     cdef public object force8
     cdef public list force7
     cdef public list special
-    cdef public list _hist
-    cdef public list _med_prev
+    cdef list _hist
+    cdef list _med_prev
 
     cpdef initPic(self)
     @cython.locals(pulses=list, applied=list, changed=bint, i=cython.long, p=cython.long)

@@ -63,7 +63,7 @@ cdef class ServoControl:
     cdef public dict laws
     cdef public LawInputs inputs
     cdef public object law_fault
-    cdef public set _stopped
+    cdef set _stopped
     cdef public list law_cost
     cdef public long long law_cycles_tick
 

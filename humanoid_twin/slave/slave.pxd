@@ -62,19 +62,19 @@ cdef class Slave:
     cdef public double task_load_max
     cdef public long long busy_until_us
     cdef public long long ticks_skipped
-    cdef public bint _outputs_due
-    cdef public bint _overran
-    cdef public bint _pass_late
-    cdef public object _finish_cb
-    cdef public object _overrun_cb
-    cdef public long long _due_us
-    cdef public long long _delay_us
-    cdef public long long _delay_ticks
-    cdef public list _still
-    cdef public list _refs
-    cdef public list _periods
-    cdef public list _types
-    cdef public list _start
+    cdef bint _outputs_due
+    cdef bint _overran
+    cdef bint _pass_late
+    cdef object _finish_cb
+    cdef object _overrun_cb
+    cdef long long _due_us
+    cdef readonly long long _delay_us
+    cdef readonly long long _delay_ticks
+    cdef list _still
+    cdef list _refs
+    cdef list _periods
+    cdef list _types
+    cdef list _start
 
     cpdef long long next_tick_us(self) except? -1
     cpdef emergency_stop(self)

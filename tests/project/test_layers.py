@@ -127,7 +127,8 @@ def test_nothing_but_the_twin_steps_the_plant() -> None:
 # type checker and never runs). Derived from the imports (docs/architecture.md, "Layers").
 LAYERS: tuple[tuple[str, tuple[str, ...]], ...] = (
     ("foundations", ("clock", "protocol", "hardware", "limits", "seeds", "signals", "core", "core_modules",
-                     "cycles", "containment", "plugins", "outputs", "board_report", "fault_compose")),
+                     "interfaces", "cycles", "containment", "plugins", "outputs", "board_report",
+                     "fault_compose")),
     ("bus", ("bus",)),
     ("firmware", ("slave", "master")),
     ("plant", ("plant", "params")),
