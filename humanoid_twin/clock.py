@@ -51,7 +51,7 @@ class Clock:
     - interpreted: ``heapq`` on ``(due, seq, period, callback)`` tuples in ``_queue`` (C code
       in CPython: the arrays' sifting written in Python costs ~20 000 instructions an event
       there, heapq ~2 500).
-    tests/test_clock.py runs both layouts against each other. A periodic event
+    tests/twin/test_clock.py runs both layouts against each other. A periodic event
     (:meth:`call_every`) is one entry, pushed again with a new sequence number after its
     callback returns.
     """

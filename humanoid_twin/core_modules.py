@@ -6,7 +6,7 @@ board tick, per monitor sample. Each is its own ``.py`` (the firmware as the man
 an augmenting ``.pxd`` beside it that declares its C types. This list is the boundary:
 ``setup.py`` and ``scripts/build_core.py`` compile exactly these modules, the stale check of an
 editable install (``humanoid_twin/core.py``) compares exactly these, and a test fails when a
-``.pxd`` has no entry here or an entry has no ``.pxd`` (tests/test_core_list.py).
+``.pxd`` has no entry here or an entry has no ``.pxd`` (tests/project/test_core_list.py).
 
 This file imports nothing: ``setup.py`` loads it by its path at build time, where the package's
 dependencies may not be installed yet.

@@ -50,7 +50,7 @@ LAW_CYCLES_MAX = 2**31 - 1    # a law's declared cost per call: at most ~215 s a
 
 # Instruction cycles per call, Slave firmware (seed 000 section 3). The estimates, their sources
 # (PIC18 instruction timings, the C compiler's arithmetic routines) and the work each function
-# does are in docs/firmware.md, "Cycle budget"; tests/test_cycles.py pins the totals.
+# does are in docs/firmware.md, "Cycle budget"; tests/firmware/test_cycles.py pins the totals.
 SLAVE: dict[str, int] = {
     "loop": 150,                # waitTick return, checkCan, CAN watchdog, loop bookkeeping
     "measure_servo": 450,       # updateServoMeasures + finalizeServoMeasures + filter, per servo

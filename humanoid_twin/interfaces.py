@@ -1,5 +1,5 @@
 """The collaborators that several classes can play, as structural types (:class:`typing.Protocol`)
-for the type checker (tests/test_types.py) and the reader.
+for the type checker (tests/project/test_types.py) and the reader.
 
 A function that takes one of these takes any object with these members; nothing here is checked
 at run time. This module is at the bottom of the package: it imports nothing of it (a module that

@@ -194,7 +194,7 @@ class PtyBridge(_Bridge):
     next parity request is accepted too. The bytes are not changed (with ``IGNPAR`` set next to
     ``INPCK``, the line discipline keeps its raw path).
 
-    What no state of the pty can give (tests/test_pty_termios.py, docs/serve.md): the *same*
+    What no state of the pty can give (tests/bus/test_pty_termios.py, docs/serve.md): the *same*
     request with parity sent twice within ``REARM_AFTER_S`` (the first one leaves the pty exactly
     as the second one asks, so the second changes nothing: EINVAL), which is what Octave's
     ``serialport(..., "Parity", "even")`` constructor does (it sends its whole settings again

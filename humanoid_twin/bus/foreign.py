@@ -6,7 +6,7 @@ twin's own (``network.py``): at the end of each frame the sender's bus sends it 
 node's bus is drained, and the frames it receives (filtered by python-can, or by the kernel on
 socketcan) reach the node's receive interrupt as the wire's own frames
 (:class:`~humanoid_twin.bus.frames.Frame`), stamped with the virtual time. The frames and
-their instants are the same as on the default ``humanoid_twin`` interface (tests/test_bus_can.py).
+their instants are the same as on the default ``humanoid_twin`` interface (tests/bus/test_bus_can.py).
 """
 
 from __future__ import annotations

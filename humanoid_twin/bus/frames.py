@@ -14,7 +14,7 @@ stuff bit before the CRC delimiter).
 
 ``frame_bits(id, data)`` = 47 + 8n + stuff bits (44 + 8n frame bits + 3 IFS bits): 111..135
 for an 8-byte frame (the 0..24 stuff-bit bound is floor((34 + 8n - 1) / 4), Davis et al.
-2007; Tindell's older 0..19 bound is exceeded by real frames, see tests/test_bus_can.py).
+2007; Tindell's older 0..19 bound is exceeded by real frames, see tests/bus/test_bus_can.py).
 """
 
 from __future__ import annotations
@@ -53,7 +53,7 @@ def _stuff_table() -> tuple[int, ...]:
     # bit ends: its value and its length 1..4 (a fifth equal bit gets a stuff bit of the other
     # value, which starts a run of length 1), state = value * 4 + length - 1, 0..7.
     # Entry [state << 8 | byte] = stuff bits inserted into those 8 bits (MSB first) << 3 | the
-    # state after them. (The one statement of the stuffing rule; tests/test_bus_can.py checks
+    # state after them. (The one statement of the stuffing rule; tests/bus/test_bus_can.py checks
     # the frame length against a bit-level reference written from the rule.)
     table = []
     for state in range(8):
@@ -83,7 +83,7 @@ _STUFF_TABLE = _stuff_table()
 def _frame_bits(arbitration_id: int, data: bytes) -> int:
     """:func:`frame_bits` of a ``bytes`` payload, computed (no cache): the CRC a byte at a time
     from a table, the stuff bits a byte at a time from the stuffing automaton's table (the same
-    length as a bit-level reference, tests/test_bus_can.py); the compiled core calls it directly
+    length as a bit-level reference, tests/bus/test_bus_can.py); the compiled core calls it directly
     (a C function on C integers, cheaper than the cache's lookup)."""
     if not 0 <= arbitration_id <= STD_ID_MAX:
         raise ValueError(f"standard CAN ID must be 0..0x7FF, got {arbitration_id:#x}")

@@ -89,7 +89,7 @@ MAX_PERIOD_S = 255 * TICK_S          # the movement period travels as one byte o
 # legs): no fall, CoP margin min 1.5-10.6 mm over the whole run (the smallest in the return to
 # double support), trunk tilt max 1.3-2.5 deg; with the lean cut to 13 deg the law keeps the
 # one-leg stance (margin 3.4-10 mm) where the same plan without it (LOCOMOTION in the hold) tips
-# the support foot onto its edge in 3 runs of 4 (tests/test_balance.py). KP 2, KD 0 rocks the
+# the support foot onto its edge in 3 runs of 4 (tests/firmware/slave/test_balance.py). KP 2, KD 0 rocks the
 # robot on the foot edges. Both legs on the same law in double support fight each other
 # (docs/balance.md): a stand uses a leader/follower pair (scenarios.STAND_GAINS);
 # ``--control balance|reaction`` keeps that split (scenarios.Plan.with_control): on levantar_perna

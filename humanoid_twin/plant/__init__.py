@@ -2,7 +2,7 @@
 see it (``plant.py``), its ground truth (``truth.py``) and its drawing geometry and viewer window
 (``drawing.py``).
 
-The only package that imports ``mujoco`` (tests/test_layers.py checks it). See
+The only package that imports ``mujoco`` (tests/project/test_layers.py checks it). See
 humanoid_twin/models/README.md, docs/model.md and docs/architecture.md.
 """
 

@@ -15,7 +15,7 @@ may then be nested lists, as ``TruthProbe`` hands them over: a numpy scalar a va
 than one ``tolist`` an array.)
 
 The figures are the same numbers on both cores: the same floating-point operations in the same
-order (tests/test_truth_core.py). The hull and the margin work on arrays here
+order (tests/plant/test_truth_core.py). The hull and the margin work on arrays here
 (``plant/geometry.py`` gives them on point lists); Python's
 ``math.hypot`` is called on both cores (its result can differ from C's ``hypot`` in the last
 bit); ``math.degrees`` and ``math.radians`` are their products by ``hardware.DEG_PER_RAD`` and

@@ -3,7 +3,7 @@ margin.
 
 The algorithms are ``plant/contacts.py``'s (``convex_hull_xy``, ``signed_distance_xy``, on C
 arrays in the compiled core, where the ground truth's scan calls them); these take and give
-point lists, for a reader with points in hand. tests/test_truth_core.py checks them, bit for bit,
+point lists, for a reader with points in hand. tests/plant/test_truth_core.py checks them, bit for bit,
 against a plain-Python reference on random and degenerate inputs.
 """
 

@@ -1,6 +1,6 @@
 """MuJoCo's system-identification toolbox (``mujoco.sysid``), reached through the plant.
 
-MuJoCo lives in ``plant/`` only (tests/test_layers.py): ``calibrate`` (humanoid_twin/compare/
+MuJoCo lives in ``plant/`` only (tests/project/test_layers.py): ``calibrate`` (humanoid_twin/compare/
 calibrate.py) takes the toolbox from here. It is installed by the ``mujoco[sysid]`` extra, this
 project's ``calibrate`` extra (docs/calibration.md says what of it the fit uses, and why not the
 rest).

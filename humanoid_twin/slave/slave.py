@@ -53,7 +53,7 @@ WATCHDOG_TICKS = 5
 # PIC had it compiled in. The robot's joint axes are roll about +x forward, pitch about +y left
 # (docs/model.md); the leg seen from the foot turns the other way round the roll axis than the
 # foot seen from the leg, and the left roll servo is mounted mirrored (servo = -joint), hence
-# right (-1, 1, 1), left (1, 1, 1). tests/test_slave_board.py checks them against the model.
+# right (-1, 1, 1), left (1, 1, 1). tests/firmware/slave/test_slave_board.py checks them against the model.
 LEG_SIGNS: dict[int, tuple[int, int, int]] = {1: (-1, 1, 1), 2: (1, 1, 1)}
 
 # Motion finished (status bits 0-2): the trajectory is done and the servo is within this many

@@ -393,7 +393,7 @@ def test_every_pxd_matches_its_py() -> None:
     for module in CORE_MODULES:
         py = ROOT / source_path(module)
         pxd = py.with_suffix(".pxd")
-        if pxd.is_file():           # a module without its .pxd: tests/test_core_list.py says so
+        if pxd.is_file():           # a module without its .pxd: tests/project/test_core_list.py says so
             found += mismatches(py.read_text(), pxd.read_text(), module.replace(".", "/"))
     assert found == [], "\n".join(found)
     assert time.process_time() - t0 < 1.0
