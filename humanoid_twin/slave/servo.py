@@ -287,7 +287,7 @@ class ServoControl:
     def set_law(self, ctype: int, law: ControlLaw, cycles: int | None = None) -> None:
         """Run ``law`` for control type ``ctype`` (0-3) from the next tick; servos already on
         that type start under it now (:meth:`ControlLaw.start`). ``cycles``: its cost per call,
-        already asked and checked (``laws.install_laws``); None: asked here (``law_cycles``)."""
+        already asked and checked (``controllers.install_laws``); None: asked here (``law_cycles``)."""
         if ctype not in BUILTIN_LAWS:
             raise ValueError(f"control type must be 0..3 (table 9), got {ctype!r}")
         self.law_cost[ctype] = law_cycles(law, ctype)[0] if cycles is None else cycles
