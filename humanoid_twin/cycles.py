@@ -17,12 +17,8 @@ from __future__ import annotations
 
 import math
 import sys
-from typing import TYPE_CHECKING
 
 from humanoid_twin.clock import US_PER_S
-
-if TYPE_CHECKING:
-    from humanoid_twin.slave.laws import ControlLaw
 
 __all__ = [
     "DEFAULT_PIC_MHZ",
@@ -105,7 +101,7 @@ def check_pic_mhz(value: float) -> float:
     return float(value)
 
 
-def law_cycles(law: ControlLaw, ctype: int) -> tuple[int, bool]:
+def law_cycles(law: object, ctype: int) -> tuple[int, bool]:
     """``(cycles per call, declared)`` of a control law: its ``cycles`` (an int, or a method
     called with no arguments that returns one), else the built-in law of control type ``ctype``
     (``declared`` False). A declared cost that is not an int in 0..``LAW_CYCLES_MAX`` raises
@@ -121,7 +117,7 @@ def law_cycles(law: ControlLaw, ctype: int) -> tuple[int, bool]:
     return c, True
 
 
-def note_default_cost(law: ControlLaw, ctype: int, cost: tuple[int, bool] | None = None) -> None:
+def note_default_cost(law: object, ctype: int, cost: tuple[int, bool] | None = None) -> None:
     """The one line a run writes when a law declares no cost (docs/controllers.md); ``cost``: its
     :func:`law_cycles`, already asked (None: asked here)."""
     from humanoid_twin.protocol.wire import ControlType

@@ -35,15 +35,15 @@ def main(argv: list[str] | None = None) -> int:
     sys.path.insert(0, str(ROOT))
     from humanoid_twin.params import registry
     from humanoid_twin.sweep import RunCli, run_sweep
-    from humanoid_twin.sweep.engine import Point
-    from humanoid_twin.sweep.params import draw_samples, parse_randomize, randomized_grid
+    from humanoid_twin.sweep.engine import Point, grid
+    from humanoid_twin.sweep.params import draw_samples, parse_randomize
 
     kp = registry().get("servo.r_knee.kp").default
     randomize = [f"{KNEES}=uniform({0.8 * kp:.6g},{1.2 * kp:.6g})", f"{TRUNK}=uniform(0.9,1.1)",
                  f"{FLOOR}=uniform(0.5,1.0)"]
     task = RunCli("levantar_perna", ("--perna", "1"))
     nominal = task(Point(0, (), 0))[METRIC]
-    points = randomized_grid({}, draw_samples(parse_randomize(randomize), args.samples), [0])
+    points = grid({}, [0], draw_samples(parse_randomize(randomize), args.samples))
     rows = run_sweep(points, task, args.table, jobs=args.jobs, progress=sys.stderr)
     ok = [r for r in rows if not r.get("error")]
     margins = [float(r[METRIC]) for r in ok]

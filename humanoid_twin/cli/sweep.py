@@ -18,9 +18,10 @@ from humanoid_twin.sweep.engine import (
     _key_value,
     check_backend,
     flag,
+    grid,
     run_sweep,
 )
-from humanoid_twin.sweep.params import is_set_name, randomized_grid, run_arg
+from humanoid_twin.sweep.params import is_set_name, run_arg
 from humanoid_twin.sweep.table import SweepError, read_table, table_format
 
 # run options a sweep sets itself, or that would make every run write the same file
@@ -426,7 +427,7 @@ def sweep_command(args: argparse.Namespace, parser: argparse.ArgumentParser) -> 
         signals.user_code_done()    # the runs' own code runs in their own processes
     if args.recordings is not None:
         args.recordings.mkdir(parents=True, exist_ok=True)
-    points = randomized_grid(params, args.draws, seeds)  # type: ignore[arg-type]  # the grid x the drawn robots x the seeds (values as text)
+    points = grid(params, seeds, args.draws)  # type: ignore[arg-type]  # the grid x the drawn robots x the seeds (values as text)
     progress = None if args.no_progress else sys.stderr
     if progress is not None:
         _announce(args, task, len(points), progress)

@@ -73,14 +73,18 @@ class Point:
         return "_".join(f"{n}={v}" for n, v in self.params) + f"_seed={self.seed}"
 
 
-def grid(params: dict[str, Sequence[Any]], seeds: Iterable[int] = (0,)) -> list[Point]:
-    """Every combination of ``params`` values (first name outermost) times ``seeds``."""
+def grid(params: dict[str, Sequence[Any]], seeds: Iterable[int] = (0,),
+         draws: Sequence[tuple[tuple[str, Any], ...]] = ()) -> list[Point]:
+    """Every combination of ``params`` values (first name outermost), times each sample of
+    ``draws`` (``--randomize``'s robots, humanoid_twin/sweep/params.py: its values after the grid's
+    in a point's parameters; none: one sample of nothing), times ``seeds``."""
     names = list(params)
     seeds = list(seeds)
     points: list[Point] = []
     for values in itertools.product(*(params[n] for n in names)):
-        for seed in seeds:
-            points.append(Point(len(points), tuple(zip(names, values, strict=True)), seed))
+        for draw in draws or [()]:
+            for seed in seeds:
+                points.append(Point(len(points), (*zip(names, values, strict=True), *draw), seed))
     return points
 
 

@@ -118,21 +118,3 @@ def draw_samples(randomized: Sequence[Randomize], samples: int, seed: int = RAND
             row.append((r.name, x))
         out.append(tuple(row))
     return out
-
-
-def randomized_grid(params: dict[str, Sequence[Any]], draws: Sequence[tuple[tuple[str, float], ...]],
-                    seeds: Sequence[int]) -> list[Any]:
-    """The sweep's points: every combination of ``params`` values (first name outermost), times
-    each sample of ``draws`` (its values after the grid's in a point's parameters; none: one
-    sample of nothing), times ``seeds``."""
-    import itertools
-
-    from humanoid_twin.sweep.engine import Point
-
-    names = list(params)
-    points: list[Point] = []
-    for values in itertools.product(*(params[n] for n in names)):
-        for draw in draws or [()]:
-            for seed in seeds:
-                points.append(Point(len(points), (*zip(names, values, strict=True), *draw), seed))
-    return points
