@@ -16,7 +16,8 @@ changes nothing). docs/calibration.md says where and why.
 
 A parameter the logs do not determine (its 95 % interval, widened for the averaged residuals'
 correlation, wider than +-25 % of its value or than half its bounds; its Jacobian column near
-zero; the floor's friction from logs in which no foot slides) is ``identifiable: false``: its
+zero; its value not the bottom of a valley of the residual, one and two steps either side; the
+floor's friction from logs in which no foot slides) is ``identifiable: false``: its
 value stays where the fit started, it is not written to ``--out``, and the output names the
 motion that would determine it.
 """
@@ -39,7 +40,7 @@ from humanoid_twin.compare.robot_log import RobotLog
 from humanoid_twin.compare.signals import GROUPS, SIGNALS
 
 __all__ = ["FitProblem", "FitResult", "fit", "motion_for", "shown", "DEFAULT_GROUPS", "REL_STEP",
-           "BOUND_STEP", "ZERO_COLUMN", "REL_CI"]
+           "BOUND_STEP", "ZERO_COLUMN", "REL_CI", "VALLEY_RISE"]
 
 DEFAULT_GROUPS: tuple[str, ...] = ("position_deg", "current", "force_counts", "imu_counts")
 REL_STEP = 0.1           # finite-difference step: 10 % of the value ...
@@ -47,6 +48,7 @@ BOUND_STEP = 0.005       # ... and at least 0.5 % of the parameter's range
 MU_FACTOR = 10.0         # the LM regulariser's growth after a step that did not reduce the residual
 ZERO_COLUMN = 1e-9       # a Jacobian column below this norm (quanta per unit) determines nothing
 REL_CI = 0.25            # a 95 % interval wider than +-25 % of the value determines nothing
+VALLEY_RISE = 1.1        # the residual 1 and 2 steps either side of the value: at least 10 % above it
 
 # the motion that determines a kind of parameter (Param.kind of humanoid_twin/params.py)
 MOTIONS: dict[str, str] = {
@@ -223,11 +225,12 @@ def _jacobian(ev: _Evaluator, unknowns: Sequence[Unknown], x: np.ndarray, r: np.
 
 
 def _central_jacobian(ev: _Evaluator, unknowns: Sequence[Unknown], x: np.ndarray,
-                      r: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+                      r: np.ndarray) -> tuple[np.ndarray, np.ndarray, list[list[float]]]:
     """The Jacobian at the optimum by central differences (one side at a bound), every probe in
     parallel, and for each column the variance of what a straight line through its three points
     does not explain (the twin's jitter under that parameter: a quantised reading or a contact
-    that flips, mean square per value; 0 where a side is missing)."""
+    that flips, mean square per value; 0 where a side is missing), and each column's residual RMS
+    at its probes (those within the bounds, for :func:`_valleys`)."""
     h = _steps(unknowns, x)
     pts: list[np.ndarray] = []
     sides: list[tuple[float, float]] = []
@@ -242,8 +245,10 @@ def _central_jacobian(ev: _Evaluator, unknowns: Sequence[Unknown], x: np.ndarray
     cols = ev.many(pts)
     J = np.empty((r.size, len(unknowns)))
     jitter = np.zeros(len(unknowns))
+    probes: list[list[float]] = []
     for i, (up, down) in enumerate(sides):
         r_up, r_down = cols[2 * i], cols[2 * i + 1]
+        probes.append([_rms(c) for c, v in ((r_up, up), (r_down, down)) if v != x[i]])
         J[:, i] = (r_up - r_down) / (up - down) if up > down else 0.0
         a, b = up - x[i], x[i] - down
         if a > 0 and b > 0 and r.size:
@@ -252,7 +257,32 @@ def _central_jacobian(ev: _Evaluator, unknowns: Sequence[Unknown], x: np.ndarray
             # 2/3 of its square (equal steps)
             miss = (b * r_up + a * r_down) / (a + b) - r
             jitter[i] = float(np.mean(miss * miss)) * 2.0 / 3.0
-    return J, jitter
+    return J, jitter, probes
+
+
+def _valleys(ev: _Evaluator, unknowns: Sequence[Unknown], x: np.ndarray, r: np.ndarray,
+             near: list[list[float]]) -> list[bool]:
+    """Whether each unknown's value is the bottom of a valley of the residual: its RMS at one
+    (``near``, the central Jacobian's probes) and two Jacobian steps either side, within the
+    bounds, at least :data:`VALLEY_RISE` times the value's. The residual is not smooth (a reading
+    or a pad's share of the load flips as a parameter moves): where a parameter's effect is
+    smaller than those jumps, the fit stops at a jump, and the Jacobian there, hence the interval,
+    says nothing; the profile shows it (docs/calibration.md, "Identifiable")."""
+    h = _steps(unknowns, x)
+    pts: list[np.ndarray] = []
+    owner: list[int] = []
+    for i, u in enumerate(unknowns):
+        for v in (min(x[i] + 2 * h[i], u.hi), max(x[i] - 2 * h[i], u.lo)):
+            if v != x[i]:
+                p = x.copy()
+                p[i] = v
+                pts.append(p)
+                owner.append(i)
+    far: list[list[float]] = [[] for _ in unknowns]
+    for i, c in zip(owner, ev.many(pts), strict=True):
+        far[i].append(_rms(c))
+    floor = _rms(r) * VALLEY_RISE
+    return [all(v > floor for v in near[i] + far[i]) for i in range(len(unknowns))]
 
 
 def _windows(results: Sequence[CompareResult], groups: Sequence[str], window: int) -> float:
@@ -395,8 +425,9 @@ def fit(problem: FitProblem, *, validate: Sequence[RobotLog] = (), jobs: int = 1
             after = problem.run(x)
             r1 = np.concatenate([r.residual_vector(problem.groups, problem.window) for r in after])
             ev.evaluations += 1
-        J, jitter = _central_jacobian(ev, unknowns, x, r1)
+        J, jitter, near = _central_jacobian(ev, unknowns, x, r1)
         half = _intervals(sysid, r1, J, jitter, _windows(after, problem.groups, problem.window))
+        valley = _valleys(ev, unknowns, x, r1, near)
     finally:
         ev.close()
     fitted: dict[str, dict[str, Any]] = {}
@@ -406,7 +437,7 @@ def fit(problem: FitProblem, *, validate: Sequence[RobotLog] = (), jobs: int = 1
     for i, u in enumerate(unknowns):
         hw = float(half[i]) if i < len(half) else math.inf
         ok = (math.isfinite(hw) and col_norm[i] > ZERO_COLUMN and 2 * hw <= (u.hi - u.lo) / 2
-              and hw <= REL_CI * abs(float(x[i])) and shown(u.names[0], slip_mm))
+              and hw <= REL_CI * abs(float(x[i])) and valley[i] and shown(u.names[0], slip_mm))
         entry: dict[str, Any] = {"value": float(x[i]) if ok else u.default, "start": u.default,
                                  "ci95": [float(x[i]) - hw, float(x[i]) + hw] if ok else None,
                                  "identifiable": bool(ok)}
