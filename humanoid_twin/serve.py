@@ -18,6 +18,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
+from humanoid_twin import signals
 from humanoid_twin.clock import RealTimePacer
 from humanoid_twin.rig import Rig, RigOptions
 
@@ -102,15 +103,23 @@ def _serve_loop(rig: Rig, bridge: PtyBridge | TcpBridge, opts: ServeOptions, sho
     pacer.start()
     wall0 = time.monotonic()
     lag_warned = False
-    while not should_stop():
-        if opts.max_seconds is not None and time.monotonic() - wall0 > opts.max_seconds:
-            break
-        bridge.poll()
-        lag = twin.run_realtime_step(pacer, max_step_us=1_000)    # time advances here: toward wall time
-        bridge.poll()
-        if lag > 0.5 and not lag_warned:
-            sys.stderr.write(f"humanoid-twin serve: running {lag:.2f} s behind real time\n")
-            lag_warned = True
-        if lag == 0:
-            time.sleep(POLL_S)
+    try:
+        while not should_stop():
+            if opts.max_seconds is not None and time.monotonic() - wall0 > opts.max_seconds:
+                break
+            bridge.poll()
+            lag = twin.run_realtime_step(pacer, max_step_us=1_000)    # time advances here: toward wall time
+            bridge.poll()
+            if lag > 0.5 and not lag_warned:
+                sys.stderr.write(f"humanoid-twin serve: running {lag:.2f} s behind real time\n")
+                lag_warned = True
+            if lag == 0:
+                time.sleep(POLL_S)
+    except KeyboardInterrupt as exc:
+        # The stop that arrived after should_stop() was asked, raised where the twin was asked to
+        # go on (Twin.advance_to: humanoid_twin/signals.check): the session ends as if the loop
+        # had seen it, its outputs complete. (It raised out of serve: the CLI then discarded the
+        # session's files, exit 143 with no serial log, when SIGTERM came during a poll.)
+        if not (signals.is_signal(exc) and should_stop()):
+            raise
     return 0

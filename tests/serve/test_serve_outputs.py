@@ -75,3 +75,38 @@ def test_the_tilt_starts_when_the_robot_has_booted() -> None:
         assert ready_s is not None and rig.twin.plant.tilt_deg < 0.1
         rig.twin.run_for(1.0)
         assert rig.twin.plant.tilt_deg == pytest.approx(rig.now_s - ready_s, abs=0.05)
+
+
+def test_a_stop_that_arrives_between_the_loops_check_and_the_next_step_ends_the_session_cleanly(
+        tmp_path) -> None:
+    """SIGTERM handled while serve polled its port (after the loop's ``should_stop()``, before the
+    twin's next step) was raised again by ``Twin.advance_to`` out of ``serve``: the CLI then
+    exited 143 and discarded the session's files (the docs' replay found no ``session.serial``,
+    seen in CI). Here the stop lands exactly there; serve must end as for any stop, its serial
+    log complete."""
+    from humanoid_twin import signals
+    from humanoid_twin.recording.serial_log import read_log
+    from humanoid_twin.serve import ServeOptions, serve
+
+    asked = {"n": 0, "stop": False}
+
+    def should_stop() -> bool:
+        asked["n"] += 1
+        if asked["n"] == 50:            # the signal's handler, run just after this check
+            signals.stop_requested(signal.SIGTERM)
+            asked["stop"] = True
+            return False
+        return asked["stop"]
+
+    log = tmp_path / "s.serial"
+    signals.user_code_runs()            # as the CLI: the laws may run from here to the rig's close
+    try:
+        code = serve(ServeOptions(tcp_port=0, serial_log=log), should_stop=should_stop,
+                     announce=lambda line: None, log=lambda line: None)
+    except KeyboardInterrupt as exc:    # (a KeyboardInterrupt would end pytest itself)
+        pytest.fail(f"serve raised {type(exc).__name__} for a stop it was asked to make")
+    finally:
+        signals.user_code_done()
+    assert code == 0 and asked["n"] == 51      # asked once more after the stop: not cut short
+    meta, _ = read_log(log)
+    assert meta["seed"] == 0                   # a complete log, its header written
