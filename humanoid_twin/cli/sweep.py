@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import os
 import sys
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -15,10 +16,10 @@ from humanoid_twin.sweep.engine import (
     DEFAULT_TIMEOUT_S,
     MAX_POINTS,
     RunCli,
-    _key_value,
     check_backend,
     flag,
     grid,
+    key_value,
     run_sweep,
 )
 from humanoid_twin.sweep.params import is_set_name, run_arg
@@ -104,7 +105,7 @@ def parse_params(specs: list[str]) -> dict[str, list[str]]:
             raise SweepError(f"--param {name} given twice")
         if len(set(vals)) != len(vals):
             raise SweepError(f"--param {spec!r}: a value is repeated")
-        typed = [_key_value(v) for v in vals]     # 10 and 10.0 are one grid point (issue 24)
+        typed = [key_value(v) for v in vals]     # 10 and 10.0 are one grid point (issue 24)
         if len(set(typed)) != len(typed):
             dup = next(v for i, v in enumerate(vals) if typed[i] in typed[:i])
             raise SweepError(f"--param {spec!r}: a value is repeated ({dup} is the same value as an "
@@ -114,7 +115,7 @@ def parse_params(specs: list[str]) -> dict[str, list[str]]:
 
 
 def plan_sweep(args: argparse.Namespace, parser: argparse.ArgumentParser
-               ) -> tuple[dict[str, list[str]], list[int], RunCli]:
+               ) -> tuple[dict[str, list[str]], Sequence[int], RunCli]:
     """Check every input of ``sweep`` (``parser``: the CLI's, whose ``run`` checks each value);
     returns the grid, the seeds and the task. Raises :class:`SweepError` (or exits 2 through the
     parser) before anything is written."""
@@ -163,13 +164,15 @@ def _check_run_args(args: argparse.Namespace, parser: argparse.ArgumentParser, r
     return base, given
 
 
-def _grid(args: argparse.Namespace) -> tuple[dict[str, list[str]], list[int]]:
+def _grid(args: argparse.Namespace) -> tuple[dict[str, list[str]], Sequence[int]]:
     """The ``--param`` s (by column name) and the seeds (``--seeds N`` or ``--param seed=...``)."""
     # a parameter's column is named as the option's dest (pic_mhz): --param pic-mhz or pic_mhz
     params = {n.replace("-", "_"): v for n, v in parse_params(args.param).items()}
     if len(params) != len(args.param):
         raise SweepError("a --param is given twice (pic-mhz and pic_mhz are one option)")
-    seeds = list(range(args.seeds))
+    # a range, not a list: --seeds 100000000 is refused by the size check at once (a list of them
+    # took 15 s and 4 GB first)
+    seeds: Sequence[int] = range(args.seeds)
     if "seed" in params:
         if args.seeds != 1:
             raise SweepError("give either --seeds N or --param seed=..., not both")
@@ -197,7 +200,7 @@ def _check_param(args: argparse.Namespace, parser: argparse.ArgumentParser, run_
         parser.parse_args(["run", args.scenario, "--no-record", *run_args, f"{flag(name)}={v}"])
 
 
-def _check_size(args: argparse.Namespace, params: dict[str, list[str]], seeds: list[int]) -> None:
+def _check_size(args: argparse.Namespace, params: dict[str, list[str]], seeds: Sequence[int]) -> None:
     """At most :data:`MAX_POINTS` runs; every seed in range."""
     n_points = len(seeds) * max(1, len(args.draws))
     for values in params.values():
@@ -308,7 +311,7 @@ def known_columns(parser: argparse.ArgumentParser, params: dict[str, list[str]])
 
 
 def _check_every_point(args: argparse.Namespace, parser: argparse.ArgumentParser, run_args: list[str],
-                       params: dict[str, list[str]], seeds: list[int]) -> None:
+                       params: dict[str, list[str]], seeds: Sequence[int]) -> None:
     """Every grid point through ``run``'s own checks (the planners' limits, the platform's tilt,
     --duration, the faults' composition, a loadable --law / --host-controller ...) before any
     run starts: one line, exit 2 (issue 24). A seed is checked once, on the first point."""

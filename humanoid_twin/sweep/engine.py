@@ -44,7 +44,7 @@ def typed_value(text: Any) -> Any:
     return text
 
 
-def _key_value(value: Any) -> str:
+def key_value(value: Any) -> str:
     """The same parameter value read back from CSV (text) or Parquet/JSON (typed) gives one key."""
     v = typed_value(value)
     if isinstance(v, bool):
@@ -64,7 +64,7 @@ class Point:
 
     def key(self) -> tuple:
         """What identifies this run in a table (so a re-run can skip it)."""
-        return tuple((n, _key_value(v)) for n, v in self.params) + (("seed", _key_value(self.seed)),)
+        return tuple((n, key_value(v)) for n, v in self.params) + (("seed", key_value(self.seed)),)
 
     def row_prefix(self) -> dict[str, Any]:
         return {**{n: typed_value(v) for n, v in self.params}, "seed": self.seed}
@@ -92,7 +92,7 @@ def row_key(row: dict[str, Any], names: Sequence[str]) -> tuple | None:
     """The :meth:`Point.key` of a table row, or None when the row lacks one of ``names``."""
     if any(n not in row for n in names) or "seed" not in row:
         return None
-    return tuple((n, _key_value(row[n])) for n in names) + (("seed", _key_value(row["seed"])),)
+    return tuple((n, key_value(row[n])) for n in names) + (("seed", key_value(row["seed"])),)
 
 
 @dataclass(frozen=True)
@@ -516,4 +516,4 @@ def _ordered(columns: list[str]) -> list[str]:
 
 
 __all__ = ["Point", "RunCli", "SweepError", "grid", "run_sweep", "run_point", "typed_value", "BACKENDS",
-           "TIMING_COLUMNS", "check_backend", "flag"]
+           "TIMING_COLUMNS", "check_backend", "flag", "key_value", "row_key"]
