@@ -53,6 +53,7 @@ def main() -> int:
         "fitted": {n: round(e["value"], 4) for n, e in result.fitted.items()}, "robot": ROBOT,
         "residual_before": round(result.residual_before, 4),
         "residual_after": round(result.residual_after, 4),
+        "not_identifiable": [n for n, e in result.fitted.items() if not e["identifiable"]],
     }
     if args.json:
         print(json.dumps(out))
@@ -62,7 +63,9 @@ def main() -> int:
         print(f"wall per fit ({len(ROBOT)} parameters): {result.wall_s:.1f} s, "
               f"{result.evaluations} evaluations")
         for n, e in result.fitted.items():
-            print(f"  {n}: {e['value']:.4f} (robot {ROBOT[n]})")
+            said = "" if e["identifiable"] else ", not identifiable"
+            print(f"  {n}: {e['value']:.4f} (robot {ROBOT[n]}){said}")
+        print(f"residual {result.residual_before:.3f} -> {result.residual_after:.3f} quanta RMS")
     return 0
 
 
