@@ -58,7 +58,7 @@ class BoardReport:
         ``deadlineError`` (late or overrun), the Master's slots that overran."""
         twin = self.twin
         slaves = twin.slaves
-        pic = twin.master.pic  # type: ignore[union-attr]  # a board report's twin has its Master
+        pic = twin.the_master().pic
         misses = {"master": pic.slot_overruns}
         for scu, s in slaves.items():
             misses[str(scu)] = s.deadline_violations

@@ -346,7 +346,7 @@ def replay(path: str | Path, seed: int | None = None, *, laws: Iterable[tuple[in
                     twin.link.host_reset_output()
                 else:                # a serve client came or left: the cable and the Master's receiver
                     twin.link.unplug()
-                    twin.master.reset_receiver()  # type: ignore[union-attr]  # a rig's twin has its Master
+                    twin.the_master().reset_receiver()
             cmp.match(twin.clock.now_us, rec.t_us)
             if cmp.difference is not None and not recording:
                 break

@@ -271,7 +271,7 @@ class Rig:
 
     def stopped(self) -> bool:
         """The Master's supervisor is in ``safe`` or ``estop``."""
-        return self.twin.master.supervisor.mode in (SAFE, ESTOP)  # type: ignore[union-attr]  # a rig's twin has its Master
+        return self.twin.the_master().supervisor.mode in (SAFE, ESTOP)
 
     def tolerates(self) -> bool:
         """A failed host request is part of what the run shows (the summary's ``host_error``)
@@ -310,7 +310,7 @@ class Rig:
         client booted the robot: ``serve``)."""
         if not self.opts.tilt:
             return
-        sup = self.twin.master.supervisor  # type: ignore[union-attr]  # as above
+        sup = self.twin.the_master().supervisor
         started = [False]
 
         def on_mode(kind: str, t_us: int, value: Any) -> None:

@@ -720,7 +720,7 @@ class Session:
         truth = twin.plant.truth()
         return {
             "t_s": twin.now_s,
-            "mode": twin.master.supervisor.mode_name,  # type: ignore[union-attr]  # a rig's twin has its Master
+            "mode": twin.the_master().supervisor.mode_name,
             "fell": mon.fell or truth.fell,
             "fell_at_s": mon.fell_at_s,
             "trunk_tilt_deg": truth.trunk_tilt_deg,

@@ -75,7 +75,7 @@ def serve(opts: ServeOptions | None = None, *, should_stop: Callable[[], bool] =
         # Between two clients the line stays quiet longer than the Master's break-off gap and its
         # answer delay, and each client starts with the Master's receiver reset: no spliced frames,
         # no answer to somebody else's bytes.
-        options: dict[str, Any] = dict(log=log, on_session=twin.master.reset_receiver,  # type: ignore[union-attr]  # a served twin has its Master
+        options: dict[str, Any] = dict(log=log, on_session=twin.the_master().reset_receiver,
                                        idle_timeout_s=opts.idle_timeout_s,
                                        quiet_us=FRAME_GAP_US + PROCESS_US + 1_000)
         try:

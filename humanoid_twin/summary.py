@@ -31,7 +31,7 @@ def build_summary(rig: Rig, scenario: str, plan: Plan, *, completed: bool, wall_
     """The summary of the run ``scenario`` (its name as the user gave it) on ``rig``, whose plan
     was ``plan``: every key of :data:`SUMMARY_KEYS` that applies, in that order."""
     twin, opts = rig.twin, rig.opts
-    sup = twin.master.supervisor  # type: ignore[union-attr]  # a run's twin has its Master
+    sup = twin.the_master().supervisor
     summary: dict[str, Any] = {
         "scenario": scenario,
         "duration_s": round(twin.now_s, 6),
@@ -81,7 +81,7 @@ def _run_facts(rig: Rig, plan: Plan, *, completed: bool, wall_s: float) -> dict[
         "wall_s": round(wall_s, 3),
         "rtf": round(twin.now_s / wall_s, 3) if wall_s > 0 else None,
         "can_frames": twin.network.frames_sent,
-        "serial_frames": twin.master.stats()["serial_frames_received"],  # type: ignore[union-attr]  # as above
+        "serial_frames": twin.the_master().stats()["serial_frames_received"],
         "boot_s": None if rig.boot_s is None else round(rig.boot_s, 3),
         "booted": rig.boot_error is None,
         "completed": completed,

@@ -102,6 +102,13 @@ class Twin:
         self.clock.run_until(t_us)
         self.plant.advance_to(t_us)
 
+    def the_master(self) -> Master:
+        """The Master board; ``RuntimeError`` for a twin built with ``master=False`` (a CAN log's
+        player stands in for it). What a rig, a recording or a summary reads the Master through."""
+        if self.master is None:
+            raise RuntimeError("this twin has no Master board (built with master=False)")
+        return self.master
+
     def run_for(self, seconds: float) -> None:
         """Advance the whole twin by ``seconds`` of virtual time."""
         self.advance_to(self.clock.now_us + round(seconds * US_PER_S))

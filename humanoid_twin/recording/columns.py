@@ -537,7 +537,7 @@ class _BusRates:
 
 def _bus_columns(twin: Twin) -> list[Column]:
     net = twin.network
-    ctl = twin.master.controller  # type: ignore[union-attr]  # a recorded twin has its Master
+    ctl = twin.the_master().controller
     link = twin.link
     bus = _BusRates(twin)
     rates = ColumnGroup(bus.read, finish=bus.finish, raw_width=bus.raw_width, ints=bus.raw_width)
@@ -559,7 +559,7 @@ def _bus_columns(twin: Twin) -> list[Column]:
 def master_groups(twin: Twin) -> list[tuple[str, list[str]]]:
     """The ``master/...`` entities and the numeric ``Master.stats()`` keys each plots."""
     groups: list[tuple[str, list[str]]] = []
-    for k, v in twin.master.stats().items():  # type: ignore[union-attr]  # as above
+    for k, v in twin.the_master().stats().items():
         if isinstance(v, bool) or not isinstance(v, (int, float)):
             continue
         group = next((g for g in _MASTER_GROUPS if k.startswith(g)), k)
@@ -574,11 +574,11 @@ def master_groups(twin: Twin) -> list[tuple[str, list[str]]]:
 
 
 def _master_columns(twin: Twin, groups: list[tuple[str, list[str]]]) -> list[Column]:
-    master = twin.master
+    master = twin.the_master()
     keys = [k for _, ks in groups for k in ks]
 
     def stats(t: Tick) -> Sequence[float]:          # one Master.stats() per row for all its columns
-        st = master.stats()  # type: ignore[union-attr]  # as above
+        st = master.stats()
         return [st.get(k, _NAN) for k in keys]
 
     group = ColumnGroup(stats, every=COUNTER_EVERY)

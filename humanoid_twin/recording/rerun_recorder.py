@@ -507,7 +507,7 @@ class Recorder:
     def _on_supervisor(self, kind: str, t_us: int, value: Any) -> None:
         """The Master supervisor's listener: every mode change and fault as an event."""
         if kind == "mode":
-            sup = self.twin.master.supervisor  # type: ignore[union-attr]  # a recorded twin has its Master
+            sup = self.twin.the_master().supervisor
             self.log_event(t_us, f"mode -> {sup.mode_name}", "WARN" if sup.mode_name in ("safe", "estop")
                            else "INFO")
         elif kind == "fault":
